@@ -1,0 +1,48 @@
+"""quatarray: fast batched quaternions for large rotation streams.
+
+Quaternions are plain ``(..., 4)`` float arrays in **(w, x, y, z)** order
+(scalar first), Hamilton algebra, active rotations in right-handed frames.
+Every operation runs in a numba-compiled batched kernel.
+
+Submodules are imported on first use, so ``import quatarray`` stays cheap
+and numba is loaded (and kernels compiled or read from the cache) only when
+a function is first called.
+"""
+
+import importlib
+
+__version__ = "0.1.0"
+
+_MODULES = {
+    "algebra": [
+        "multiply", "conjugate", "inverse", "norm", "normalize", "dot", "exp", "log",
+        "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean",
+    ],
+    "rotation": ["rotate"],
+    "conversions": [
+        "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle",
+        "from_axis_angle", "as_xyzw", "from_xyzw", "to_scipy", "from_scipy",
+        "as_left_matrix", "as_right_matrix", "as_su2", "from_su2",
+    ],
+    "euler": ["as_euler", "from_euler"],
+    "interpolation": [
+        "lerp", "nlerp", "slerp", "double", "bisect", "bezier_controls", "bezier",
+        "squad", "unflip", "spline", "angular_velocity",
+    ],
+    "transforms": ["VQS", "VQM", "interpolate"],
+}
+_WHERE = {name: mod for mod, names in _MODULES.items() for name in names}
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name):
+    mod = _WHERE.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'quatarray' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{mod}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -1,0 +1,157 @@
+"""Per-element kernels: one quaternion (a 4-tuple ``(w, x, y, z)``) or one
+vector (a 3-tuple) in, a tuple or scalar out.
+
+These are the single definitions of the quaternion formulas; the batched
+loops in the public modules call them row by row. They never allocate,
+validate or raise, and they keep the float type of their arguments
+(constants go through :func:`quatarray._jit.like`).
+"""
+
+import math
+
+from ._jit import element, like
+
+
+@element
+def load4(a, i):
+    return (a[i, 0], a[i, 1], a[i, 2], a[i, 3])
+
+
+@element
+def store4(out, i, q):
+    out[i, 0] = q[0]
+    out[i, 1] = q[1]
+    out[i, 2] = q[2]
+    out[i, 3] = q[3]
+
+
+@element
+def load3(a, i):
+    return (a[i, 0], a[i, 1], a[i, 2])
+
+
+@element
+def store3(out, i, v):
+    out[i, 0] = v[0]
+    out[i, 1] = v[1]
+    out[i, 2] = v[2]
+
+
+@element
+def qmul(p, q):
+    """Hamilton product p⊗q."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    )
+
+
+@element
+def qconj(q):
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+@element
+def qdot(p, q):
+    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
+
+
+@element
+def qnorm(q):
+    return math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+@element
+def qscale(q, s):
+    return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
+
+
+@element
+def qneg(q):
+    return (-q[0], -q[1], -q[2], -q[3])
+
+
+@element
+def qnormalize(q):
+    n = qnorm(q)
+    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+@element
+def qinverse(q):
+    n2 = qdot(q, q)
+    return (q[0] / n2, -q[1] / n2, -q[2] / n2, -q[3] / n2)
+
+
+@element
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@element
+def vnorm(v):
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+@element
+def qrotate(q, v):
+    """Vector part of q (0, v) q⁻¹, for any non-zero q (|q| need not be 1).
+
+    With u the vector part and t = u × v: v + (2/|q|²)(w t + u × t).
+    """
+    w = q[0]
+    u = (q[1], q[2], q[3])
+    k = like(w, 2.0) / qdot(q, q)
+    t = cross(u, v)
+    s = cross(u, t)
+    return (
+        v[0] + k * (w * t[0] + s[0]),
+        v[1] + k * (w * t[1] + s[1]),
+        v[2] + k * (w * t[2] + s[2]),
+    )
+
+
+@element
+def half_angle(q):
+    """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q."""
+    return math.atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
+
+
+@element
+def sinc(x):
+    """sin(x)/x, exact to rounding also for tiny x."""
+    if abs(x) < like(x, 1e-4):
+        x2 = x * x
+        return like(x, 1.0) - x2 / like(x, 6.0) + x2 * x2 / like(x, 120.0)
+    return math.sin(x) / x
+
+
+@element
+def qexp(q):
+    """exp(w + u) = e^w (cos|u|, sin|u| u/|u|)."""
+    th = vnorm((q[1], q[2], q[3]))
+    e = math.exp(q[0])
+    s = e * sinc(th)
+    return (e * math.cos(th), s * q[1], s * q[2], s * q[3])
+
+
+@element
+def qlog(q):
+    """Principal logarithm: (log|q|, θ u/|u|) with θ = atan2(|u|, w) in [0, π].
+
+    A negative real q has no unique axis; x is used, (log|w|, π, 0, 0).
+    """
+    un = vnorm((q[1], q[2], q[3]))
+    n = qnorm(q)
+    lw = math.log(n)
+    zero = like(n, 0.0)
+    if un == zero:
+        if q[0] < zero:
+            return (lw, like(n, math.pi), zero, zero)
+        return (lw, zero, zero, zero)
+    f = math.atan2(un, q[0]) / un
+    return (lw, f * q[1], f * q[2], f * q[3])

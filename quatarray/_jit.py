@@ -1,0 +1,118 @@
+"""Every numba option quatarray uses, in one place.
+
+Kernels are compiled lazily, on their first call, for the argument types
+they meet (float32 and float64, contiguous or strided, writable or
+read-only), and cached on disk (``cache=True``) so that later processes
+load machine code instead of compiling.
+
+Environment variables
+---------------------
+QUATARRAY_NO_CACHE
+    Set to ``1`` to keep numba's on-disk cache off (for read-only
+    installs or when debugging a kernel).
+QUATARRAY_PARALLEL_MIN_ROWS
+    Batches with at least this many rows run the multi-threaded variant of
+    a row loop (default 200000, chosen from ``benchmarks/``). ``0`` means
+    always, a huge value never.
+
+Kernel layers
+-------------
+``element``
+    Per-element math on scalars and tuples (one quaternion, one vector).
+``rowloop``
+    A batched loop over the leading axis, written once with ``prange``;
+    it is compiled as a serial and as a parallel dispatcher and the call
+    picks one by the number of rows.
+``like(x, c)``
+    The constant ``c`` in ``x``'s float type, so float32 kernels stay
+    float32 (a bare ``2.0`` would promote them to float64).
+"""
+
+import os
+import types as _pytypes
+
+import numba
+import numpy as np
+from numba import types
+from numba.extending import overload
+
+CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
+PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
+
+# error_model="numpy": 1/0 gives inf or nan instead of raising, as numpy does.
+_OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy")
+
+prange = numba.prange
+
+
+def element(fn):
+    """Compile a per-element function (scalars and tuples in, tuple out)."""
+    return numba.njit(**_OPTIONS)(fn)
+
+
+class RowLoop:
+    """A batched kernel with a serial and a parallel variant.
+
+    ``rows`` is the index of the argument whose first axis is the loop
+    length; calls with fewer than ``PARALLEL_MIN_ROWS`` rows use the
+    serial variant.
+    """
+
+    def __init__(self, fn, rows=0, parallel=True):
+        self.py_func = fn
+        self.rows = rows
+        self.serial = numba.njit(**_OPTIONS)(fn)
+        if parallel:
+            # A distinct qualname gives the parallel variant its own cache file.
+            twin = _pytypes.FunctionType(
+                fn.__code__, fn.__globals__, fn.__name__ + "_parallel", fn.__defaults__, fn.__closure__
+            )
+            twin.__qualname__ = fn.__qualname__ + "_parallel"
+            twin.__module__ = fn.__module__
+            self.parallel = numba.njit(parallel=True, **_OPTIONS)(twin)
+        else:
+            self.parallel = self.serial
+        self.__doc__ = fn.__doc__
+        self.__name__ = fn.__name__
+
+    def __call__(self, *args):
+        if args[self.rows].shape[0] >= PARALLEL_MIN_ROWS:
+            return self.parallel(*args)
+        return self.serial(*args)
+
+
+def rowloop(fn=None, *, rows=0, parallel=True):
+    """Decorator: ``@rowloop`` or ``@rowloop(rows=1, parallel=False)``."""
+    if fn is None:
+        return lambda f: RowLoop(f, rows=rows, parallel=parallel)
+    return RowLoop(fn, rows=rows, parallel=parallel)
+
+
+def kernel(fn=None, *, parallel=False):
+    """Compile a whole-array kernel that is not a plain row loop (scans, searches)."""
+    if fn is None:
+        return lambda f: numba.njit(parallel=parallel, **_OPTIONS)(f)
+    return numba.njit(parallel=parallel, **_OPTIONS)(fn)
+
+
+def like(x, c):
+    """``c`` converted to the float type of ``x`` (identity in plain Python)."""
+    return c
+
+
+@overload(like, jit_options={"cache": CACHE})
+def _like(x, c):
+    if isinstance(x, types.Float):
+        ftype = np.dtype(str(x)).type
+
+        def impl(x, c):
+            return ftype(c)
+
+        return impl
+    if isinstance(x, types.Array) and isinstance(x.dtype, types.Float):
+        ftype = np.dtype(str(x.dtype)).type
+
+        def impl(x, c):
+            return ftype(c)
+
+        return impl

@@ -1,0 +1,177 @@
+"""The front end: validation, dtype rules, broadcasting and ``out=``.
+
+Kernels never check anything; every public function runs its arguments
+through here first. Every shape error uses one template::
+
+    Expected `q` to have shape (..., 4), got (10, 3).
+"""
+
+import math
+
+import numpy as np
+
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def _spec(core):
+    return "(" + ", ".join(["..."] + [str(c) for c in core]) + ")"
+
+
+def shape_error(name, expected, got):
+    """The one message template for a bad shape."""
+    return ValueError(f"Expected `{name}` to have shape {expected}, got {tuple(got)}.")
+
+
+def is_weak(x):
+    """Python scalars (``0.5``, ``3``) do not take part in dtype promotion."""
+    return type(x) in (float, int, bool)
+
+
+def as_float(x, name, dtype=None):
+    """``x`` as a float32 or float64 ndarray (no copy where none is needed).
+
+    float32 and float64 are kept; integers, booleans, lists and float16 become
+    float64 (float16 becomes float32); complex, object and strings raise
+    ``TypeError``. ``dtype`` forces a float dtype.
+    """
+    if isinstance(x, np.ndarray):
+        a = np.asarray(x)  # drops subclasses such as np.memmap, never copies
+    else:
+        try:
+            a = np.asarray(x)
+        except (ValueError, TypeError) as exc:
+            raise TypeError(f"Expected `{name}` to be an array of real numbers: {exc}") from None
+    kind = a.dtype.kind
+    if kind == "f":
+        if a.dtype == np.float16:
+            a = a.astype(np.float32)
+        elif a.dtype not in _FLOATS:
+            a = a.astype(np.float64)
+    elif kind in "biu":
+        a = a.astype(np.float64)
+    else:
+        raise TypeError(f"Expected `{name}` to have a real (float, integer or bool) dtype, got {a.dtype}.")
+    if dtype is not None and a.dtype != dtype:
+        a = a.astype(dtype)
+    return a
+
+
+def check_core(a, name, core):
+    """Raise the template ``ValueError`` unless ``a.shape`` ends with ``core``."""
+    k = len(core)
+    if a.ndim < k or (k and a.shape[a.ndim - k :] != tuple(core)):
+        raise shape_error(name, _spec(core), a.shape)
+    return a
+
+
+def result_dtype(arrays, weak=()):
+    """float32 when every non-weak input is float32, else float64."""
+    strong = [a.dtype for a, w in zip(arrays, weak or [False] * len(arrays)) if not w]
+    if strong and all(d == np.float32 for d in strong):
+        return np.dtype(np.float32)
+    return np.dtype(np.float64)
+
+
+def leading(arrays, cores, names):
+    """The broadcast leading shape of ``arrays`` (each with its core shape)."""
+    leads = [a.shape[: a.ndim - len(c)] for a, c in zip(arrays, cores)]
+    first = leads[0]
+    if all(s == first for s in leads):
+        return first
+    try:
+        return np.broadcast_shapes(*leads)
+    except ValueError:
+        pairs = " and ".join(f"`{n}` {a.shape}" for n, a in zip(names, arrays))
+        raise ValueError(f"Expected the leading dimensions of {pairs} to broadcast.") from None
+
+
+def flatten(a, lead, core):
+    """``a`` broadcast to ``lead + core`` and viewed as ``(n,) + core``."""
+    if a.shape[: a.ndim - len(core)] != lead:
+        a = np.broadcast_to(a, lead + tuple(core))
+    return a.reshape((math.prod(lead),) + tuple(core))
+
+
+def check_out(out, shape, dtype):
+    """Raise ``ValueError`` unless ``out`` is a writeable array of this shape and dtype."""
+    if not isinstance(out, np.ndarray):
+        raise ValueError(f"Expected `out` to be a numpy array, got {type(out).__name__}.")
+    if out.shape != tuple(shape) or out.dtype != dtype:
+        raise ValueError(
+            f"Expected `out` to have shape {tuple(shape)} and dtype {np.dtype(dtype)}, "
+            f"got shape {out.shape} and dtype {out.dtype}."
+        )
+    if not out.flags.writeable:
+        raise ValueError("Expected `out` to be writeable, got a read-only array.")
+    return out
+
+
+def _same_view(a, b):
+    return (
+        a.shape == b.shape
+        and a.strides == b.strides
+        and a.__array_interface__["data"][0] == b.__array_interface__["data"][0]
+    )
+
+
+def elementwise(kernel, inputs, out_cores, out=None, result=None):
+    """Run a row kernel over broadcast inputs; the one path every element-wise function takes.
+
+    Parameters
+    ----------
+    kernel : callable
+        ``kernel(*inputs_2d, *outputs_2d)``; each input and output is viewed as
+        ``(n,) + core``.
+    inputs : list of (value, name, core)
+        ``core`` is the trailing shape the argument must end with, e.g.
+        ``(4,)`` for a quaternion or ``()`` for a scalar parameter.
+    out_cores : list of tuple
+        Core shapes of the outputs.
+    out : ndarray, optional
+        Only for a single output: filled and returned.
+    result : dtype, optional
+        Force the result dtype (defaults to the dtype rule).
+
+    Returns
+    -------
+    ndarray or tuple of ndarray
+    """
+    arrays, weak, cores, names = [], [], [], []
+    for value, name, core in inputs:
+        a = as_float(value, name)
+        if len(core):
+            check_core(a, name, core)
+        arrays.append(a)
+        weak.append(is_weak(value))
+        cores.append(tuple(core))
+        names.append(name)
+    dtype = np.dtype(result) if result is not None else result_dtype(arrays, weak)
+    lead = leading(arrays, cores, names)
+    n = math.prod(lead)
+    flat = [flatten(a if a.dtype == dtype else a.astype(dtype), lead, c) for a, c in zip(arrays, cores)]
+
+    if out is None:
+        outs = [np.empty((n,) + tuple(c), dtype) for c in out_cores]
+        kernel(*flat, *outs)
+        res = [o.reshape(lead + tuple(c)) for o, c in zip(outs, out_cores)]
+        res = [r[()] if r.ndim == 0 else r for r in res]
+        return res[0] if len(res) == 1 else tuple(res)
+
+    if len(out_cores) != 1:
+        raise ValueError("`out` is only accepted by functions with a single result.")
+    core = tuple(out_cores[0])
+    check_out(out, lead + core, dtype)
+    try:
+        o = np.reshape(out, (n,) + core, copy=False)
+    except ValueError:
+        o = None
+    target = o if o is not None else np.empty((n,) + core, dtype)
+    # An input overlapping `out` other than as the very same view is copied
+    # first: a row must never read what an earlier row wrote.
+    flat = [
+        f.copy() if np.may_share_memory(f, target) and not _same_view(f, target) else f for f in flat
+    ]
+    kernel(*flat, target)
+    if o is None:
+        out[...] = target.reshape(out.shape)
+    return out

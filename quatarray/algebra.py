@@ -1,0 +1,402 @@
+"""Quaternion algebra on ``(..., 4)`` arrays in (w, x, y, z) order.
+
+Hamilton convention (i² = j² = k² = ijk = −1). Leading dimensions broadcast
+like numpy; float32 stays float32, float64 stays float64, mixed gives
+float64. Element-wise functions accept ``out=`` (which may be an input).
+"""
+
+import math
+
+import numpy as np
+
+from . import _elements as E
+from ._jit import kernel, like, prange, rowloop
+from ._validate import as_float, check_core, elementwise
+
+Q = (4,)
+
+# --------------------------------------------------------------------------
+# batched loops
+
+
+@rowloop
+def _multiply(p, q, out):
+    for i in prange(p.shape[0]):
+        E.store4(out, i, E.qmul(E.load4(p, i), E.load4(q, i)))
+
+
+@rowloop
+def _conjugate(q, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qconj(E.load4(q, i)))
+
+
+@rowloop
+def _inverse(q, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qinverse(E.load4(q, i)))
+
+
+@rowloop
+def _normalize(q, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qnormalize(E.load4(q, i)))
+
+
+@rowloop
+def _norm(q, out):
+    for i in prange(q.shape[0]):
+        out[i] = E.qnorm(E.load4(q, i))
+
+
+@rowloop
+def _dot(p, q, out):
+    for i in prange(p.shape[0]):
+        out[i] = E.qdot(E.load4(p, i), E.load4(q, i))
+
+
+@rowloop
+def _exp(q, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qexp(E.load4(q, i)))
+
+
+@rowloop
+def _log(q, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qlog(E.load4(q, i)))
+
+
+@rowloop
+def _power(q, t, out):
+    for i in prange(q.shape[0]):
+        E.store4(out, i, E.qexp(E.qscale(E.qlog(E.load4(q, i)), t[i])))
+
+
+@rowloop
+def _canonical(q, out):
+    for i in prange(q.shape[0]):
+        w, x, y, z = E.load4(q, i)
+        zero = like(w, 0.0)
+        flip = w < zero or (
+            w == zero and (x < zero or (x == zero and (y < zero or (y == zero and z < zero))))
+        )
+        if flip:
+            E.store4(out, i, (-w, -x, -y, -z))
+        else:
+            E.store4(out, i, (w, x, y, z))
+
+
+@rowloop
+def _angle(q, out):
+    for i in prange(q.shape[0]):
+        out[i] = like(out, 2.0) * E.half_angle(E.load4(q, i))
+
+
+@rowloop
+def _distance(p, q, out):
+    for i in prange(p.shape[0]):
+        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i)))
+
+
+@kernel
+def _cumprod(q, out):
+    # q, out: (K, M, 4); the scan runs along axis 0 for each of the M columns.
+    for m in range(q.shape[1]):
+        acc = (q[0, m, 0], q[0, m, 1], q[0, m, 2], q[0, m, 3])
+        out[0, m, 0], out[0, m, 1], out[0, m, 2], out[0, m, 3] = acc
+        for k in range(1, q.shape[0]):
+            acc = E.qmul(acc, (q[k, m, 0], q[k, m, 1], q[k, m, 2], q[k, m, 3]))
+            out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = acc
+
+
+@kernel
+def _outer_sum(q, w, acc):
+    # acc (4, 4) float64 += w_i q_i q_iᵀ / |q_i|², accumulated in float64.
+    for i in range(q.shape[0]):
+        a = (float(q[i, 0]), float(q[i, 1]), float(q[i, 2]), float(q[i, 3]))
+        s = float(w[i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+        for r in range(4):
+            for c in range(4):
+                acc[r, c] += s * a[r] * a[c]
+
+
+# --------------------------------------------------------------------------
+# public functions
+
+
+def multiply(p, q, out=None):
+    """Hamilton product p⊗q.
+
+    Parameters
+    ----------
+    p, q : array_like, shape (..., 4)
+        Quaternions (w, x, y, z); leading dimensions broadcast.
+    out : ndarray, optional
+        Result array of the broadcast shape and result dtype; may be `p` or `q`.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.multiply([0, 1, 0, 0], [0, 0, 1, 0])  # i j = k
+    array([0., 0., 0., 1.])
+    """
+    return elementwise(_multiply, [(p, "p", Q), (q, "q", Q)], [Q], out)
+
+
+def conjugate(q, out=None):
+    """Conjugate (w, −x, −y, −z).
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.conjugate([1, 2, 3, 4])
+    array([ 1., -2., -3., -4.])
+    """
+    return elementwise(_conjugate, [(q, "q", Q)], [Q], out)
+
+
+def inverse(q, out=None):
+    """Inverse q* / |q|²; a zero quaternion gives nan.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.inverse([0, 0, 2, 0])
+    array([ 0. ,  0. , -0.5, -0. ])
+    """
+    return elementwise(_inverse, [(q, "q", Q)], [Q], out)
+
+
+def norm(q):
+    """Norm |q| (not |q|²), shape ``(...)``.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> float(qa.norm([1, 1, 1, 1]))
+    2.0
+    """
+    return elementwise(_norm, [(q, "q", Q)], [()])
+
+
+def normalize(q, out=None):
+    """q / |q|; a zero quaternion gives nan.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.normalize([0, 0, 0, 2])
+    array([0., 0., 0., 1.])
+    """
+    return elementwise(_normalize, [(q, "q", Q)], [Q], out)
+
+
+def dot(p, q):
+    """4-D inner product w_p w_q + x_p x_q + y_p y_q + z_p z_q, shape ``(...)``.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> float(qa.dot([1, 2, 3, 4], [1, 1, 1, 1]))
+    10.0
+    """
+    return elementwise(_dot, [(p, "p", Q), (q, "q", Q)], [()])
+
+
+def exp(q, out=None):
+    """Quaternion exponential e^w (cos|u|, sin|u| u/|u|) of q = (w, u).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.exp([0, np.pi / 2, 0, 0]), 12)  # exp(iπ/2) = i
+    array([0., 1., 0., 0.])
+    """
+    return elementwise(_exp, [(q, "q", Q)], [Q], out)
+
+
+def log(q, out=None):
+    """Principal logarithm (log|q|, θ u/|u|), θ = atan2(|u|, w) ∈ [0, π].
+
+    A negative real quaternion (no unique axis) gives (log|w|, π, 0, 0); zero
+    gives −inf in w.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.allclose(qa.log([0, 1, 0, 0]), [0, np.pi / 2, 0, 0])
+    True
+    """
+    return elementwise(_log, [(q, "q", Q)], [Q], out)
+
+
+def power(q, t, out=None):
+    """q^t = exp(t log q); `t` broadcasts against the leading shape of `q`.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q = qa.from_rotvec([0, 0, np.pi / 2])
+    >>> np.allclose(qa.power(q, 2), qa.multiply(q, q))
+    True
+    """
+    return elementwise(_power, [(q, "q", Q), (t, "t", ())], [Q], out)
+
+
+def canonical(q, out=None):
+    """The sign scipy's ``as_quat(canonical=True)`` picks: w > 0, ties broken by
+    the first non-zero of x, y, z being positive. Magnitudes are kept.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.canonical([-1, 0, 0, 0])
+    array([ 1., -0., -0., -0.])
+    >>> qa.canonical([0, 0, -1, 0])
+    array([-0., -0.,  1., -0.])
+    """
+    return elementwise(_canonical, [(q, "q", Q)], [Q], out)
+
+
+def angle(q):
+    """Rotation angle in [0, π], 2 atan2(|u|, |w|): accurate for tiny angles and
+    independent of the sign and scale of q.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> float(qa.angle(qa.from_rotvec([0, 1e-12, 0])))
+    1e-12
+    """
+    return elementwise(_angle, [(q, "q", Q)], [()])
+
+
+def distance(p, q):
+    """Rotation angle of p⁻¹q in [0, π]: 0 for the same rotation whatever the signs.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> float(qa.distance([1, 0, 0, 0], [-1, 0, 0, 0]))
+    0.0
+    """
+    return elementwise(_distance, [(p, "p", Q), (q, "q", Q)], [()])
+
+
+def cumprod(q, axis=0):
+    """Running product out[0] = q[0], out[i] = out[i−1]⊗q[i] along a leading axis.
+
+    `axis` counts the leading (non-quaternion) axes, so ``axis=-1`` is the last
+    leading axis, never the quaternion axis.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> step = qa.from_rotvec([0, 0, np.pi / 4])
+    >>> np.allclose(qa.cumprod(np.tile(step, (4, 1)))[-1], qa.from_rotvec([0, 0, np.pi]))
+    True
+    """
+    a = check_core(as_float(q, "q"), "q", Q)
+    lead = a.ndim - 1
+    if lead == 0:
+        raise ValueError("Expected `q` to have shape (N, ..., 4) for cumprod, got (4,).")
+    if not -lead <= axis < lead:
+        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {a.shape}, got {axis}.")
+    m = np.moveaxis(a, axis % lead, 0)
+    shape = m.shape
+    flat = m.reshape(shape[0], -1, 4)
+    out = np.empty(flat.shape, a.dtype)
+    _cumprod(flat, out)
+    return np.moveaxis(out.reshape(shape), 0, axis % lead)
+
+
+def identity(shape=(), dtype=np.float64):
+    """Identity quaternions (1, 0, 0, 0) of leading shape `shape`.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.identity(2, dtype="float32")
+    array([[1., 0., 0., 0.],
+           [1., 0., 0., 0.]], dtype=float32)
+    """
+    dtype = _float_dtype(dtype)
+    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+    out = np.zeros(shape + Q, dtype)
+    out[..., 0] = 1
+    return out
+
+
+def random(n=None, rng=None, dtype=np.float64):
+    """Uniformly distributed rotations (Haar measure), as unit quaternions.
+
+    Normalised 4-D standard normal samples are uniform on S³.
+
+    Parameters
+    ----------
+    n : int or tuple, optional
+        Leading shape; None gives a single ``(4,)`` quaternion.
+    rng : numpy.random.Generator or int, optional
+        A generator or a seed.
+    dtype : float32 or float64
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.random(3, rng=0).shape
+    (3, 4)
+    """
+    dtype = _float_dtype(dtype)
+    gen = np.random.default_rng(rng)
+    shape = () if n is None else ((n,) if isinstance(n, (int, np.integer)) else tuple(n))
+    q = gen.standard_normal(shape + Q)
+    nrm = np.linalg.norm(q, axis=-1, keepdims=True)
+    while np.any(nrm < 1e-6):  # probability ~0; redraw rather than divide by ~0
+        bad = (nrm < 1e-6)[..., 0]
+        q[bad] = gen.standard_normal((int(bad.sum()), 4))
+        nrm = np.linalg.norm(q, axis=-1, keepdims=True)
+    return (q / nrm).astype(dtype)
+
+
+def mean(q, weights=None):
+    """Rotation mean as scipy's ``Rotation.mean``: the eigenvector of the largest
+    eigenvalue of Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (sign-invariant), over all leading axes.
+
+    Returns the canonical sign (see :func:`canonical`).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q = qa.from_rotvec([[0, 0, 0.1], [0, 0, -0.1]])
+    >>> np.allclose(qa.mean(q), [1, 0, 0, 0])
+    True
+    """
+    a = check_core(as_float(q, "q"), "q", Q)
+    flat = a.reshape(-1, 4)
+    if flat.shape[0] == 0:
+        raise ValueError("Expected `q` to hold at least one quaternion, got shape " f"{a.shape}.")
+    if weights is None:
+        w = np.ones(flat.shape[0])
+    else:
+        w = as_float(weights, "weights", np.float64)
+        if w.shape != a.shape[:-1]:
+            raise ValueError(f"Expected `weights` to have shape {a.shape[:-1]}, got {w.shape}.")
+        w = w.reshape(-1)
+        if np.any(w < 0):
+            raise ValueError(f"Expected `weights` to be non-negative, got {w[w < 0][0]} at row {int(np.argmax(w < 0))}.")
+    acc = np.zeros((4, 4))
+    _outer_sum(flat, w, acc)
+    vals, vecs = np.linalg.eigh(acc)
+    return canonical(vecs[:, -1].astype(a.dtype))
+
+
+def _float_dtype(dtype):
+    d = np.dtype(dtype)
+    if d not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise TypeError(f"Expected `dtype` to be float32 or float64, got {d}.")
+    return d
