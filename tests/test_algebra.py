@@ -1,0 +1,321 @@
+"""quatarray.algebra against scipy and independent formulas."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial.transform import Rotation
+
+import quatarray as qa
+
+R = lambda q: Rotation.from_quat(np.asarray(q, float), scalar_first=True)  # noqa: E731
+
+finite = st.floats(-10, 10, allow_nan=False, width=64)
+quat = arrays(np.float64, 4, elements=finite)
+
+
+def ref_mul(p, q):
+    """Hamilton product from the 4×4 left-matrix form (independent of the kernel)."""
+    w, x, y, z = np.moveaxis(p, -1, 0)
+    L = np.stack(
+        [
+            np.stack([w, -x, -y, -z], -1),
+            np.stack([x, w, -z, y], -1),
+            np.stack([y, z, w, -x], -1),
+            np.stack([z, -y, x, w], -1),
+        ],
+        -2,
+    )
+    return np.einsum("...ij,...j->...i", L, q)
+
+
+def test_basis_products():
+    one, i, j, k = np.eye(4)
+    assert np.array_equal(qa.multiply(i, j), k)
+    assert np.array_equal(qa.multiply(j, k), i)
+    assert np.array_equal(qa.multiply(k, i), j)
+    for u in (i, j, k):
+        assert np.array_equal(qa.multiply(u, u), -one)
+    assert np.array_equal(qa.multiply(qa.multiply(i, j), k), -one)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_multiply_matches_scipy_composition(rng, dtype):
+    p, q = qa.random(1000, rng), qa.random(1000, rng)
+    got = qa.multiply(p.astype(dtype), q.astype(dtype))
+    assert got.dtype == dtype
+    want = (R(p) * R(q)).as_quat(scalar_first=True)
+    tol = 1e-6 if dtype == np.float32 else 1e-14
+    assert np.allclose(qa.distance(got.astype(float), want), 0, atol=10 * tol)
+    assert np.allclose(got, ref_mul(p, q), atol=tol)
+
+
+def test_multiply_broadcasting(rng):
+    p = rng.standard_normal((5, 1, 4))
+    q = rng.standard_normal((3, 4))
+    got = qa.multiply(p, q)
+    assert got.shape == (5, 3, 4)
+    assert np.allclose(got, ref_mul(p, q[None]))
+    one = qa.multiply(p[0, 0], q)  # (4,) with (N, 4)
+    assert one.shape == (3, 4) and np.allclose(one, ref_mul(p[0, 0], q))
+    assert qa.multiply(p[0, 0], q[0]).shape == (4,)
+    assert qa.multiply(np.empty((0, 4)), q[0]).shape == (0, 4)
+
+
+def test_dtype_rules(rng):
+    q32 = qa.random(4, rng, dtype=np.float32)
+    q64 = q32.astype(np.float64)
+    assert qa.multiply(q32, q32).dtype == np.float32
+    assert qa.multiply(q32, q64).dtype == np.float64
+    assert qa.multiply([[1, 0, 0, 0]], [[0, 1, 0, 0]]).dtype == np.float64
+    assert qa.multiply(np.ones((2, 4), int), np.ones(4, bool)).dtype == np.float64
+    assert qa.power(q32, 0.5).dtype == np.float32  # a Python scalar never upcasts
+    assert qa.power(q32, np.float64(0.5)).dtype == np.float64
+    with pytest.raises(TypeError, match="`q`"):
+        qa.normalize(np.ones(4, complex))
+    with pytest.raises(TypeError, match="`p`"):
+        qa.multiply(np.array(["a", "b", "c", "d"]), q64)
+
+
+@pytest.mark.parametrize(
+    "f", [qa.conjugate, qa.inverse, qa.normalize, qa.exp, qa.log, qa.canonical, qa.norm, qa.angle]
+)
+def test_bad_shape_message(f):
+    with pytest.raises(ValueError, match=r"Expected `q` to have shape \(\.\.\., 4\), got \(10, 3\)\."):
+        f(np.zeros((10, 3)))
+
+
+def test_broadcast_error_names_arguments():
+    with pytest.raises(ValueError, match="`p`.*`q`.*broadcast"):
+        qa.multiply(np.zeros((3, 4)), np.zeros((5, 4)))
+
+
+def test_out_and_aliasing(rng):
+    p, q = qa.random(100, rng), qa.random(100, rng)
+    want = qa.multiply(p, q)
+    out = np.empty_like(p)
+    assert qa.multiply(p, q, out=out) is out and np.array_equal(out, want)
+    p2 = p.copy()
+    qa.multiply(p2, q, out=p2)  # out is the first input
+    assert np.array_equal(p2, want)
+    q2 = q.copy()
+    qa.multiply(p, q2, out=q2)  # out is the second input
+    assert np.array_equal(q2, want)
+    # partial overlap: out is a shifted view of the input; no row may read a written row
+    a = qa.random(11, rng)
+    want = qa.multiply(a[:-1], a[0])
+    qa.multiply(a[:-1], a[0], out=a[1:])
+    assert np.array_equal(a[1:], want)
+    # a non-contiguous out
+    big = np.zeros((100, 8))
+    qa.multiply(p, q, out=big[:, ::2])
+    assert np.array_equal(big[:, ::2], qa.multiply(p, q))
+
+
+@pytest.mark.parametrize(
+    "bad, msg",
+    [
+        (np.empty((100, 3)), "shape"),
+        (np.empty((100, 4), np.float32), "dtype"),
+        ([0.0] * 4, "numpy array"),
+    ],
+)
+def test_bad_out(rng, bad, msg):
+    with pytest.raises(ValueError, match=msg):
+        qa.multiply(qa.random(100, rng), qa.random(100, rng), out=bad)
+
+
+def test_read_only_out_refused(rng):
+    out = np.empty((3, 4))
+    out.flags.writeable = False
+    with pytest.raises(ValueError, match="writeable"):
+        qa.conjugate(qa.random(3, rng), out=out)
+
+
+def test_read_only_memmap_and_strided_inputs(tmp_path, rng):
+    q = qa.random(50, rng)
+    np.save(tmp_path / "q.npy", q)
+    m = np.load(tmp_path / "q.npy", mmap_mode="r")
+    assert np.array_equal(qa.normalize(m), qa.normalize(q))
+    assert np.array_equal(qa.multiply(m, m), qa.multiply(q, q))
+    wide = np.zeros((50, 8))
+    wide[:, 1::2] = q
+    assert np.array_equal(qa.conjugate(wide[:, 1::2]), qa.conjugate(q))
+    assert np.array_equal(qa.multiply(q[::-1], q[::-1]), qa.multiply(q, q)[::-1])
+    assert np.array_equal(m, q)  # inputs untouched
+
+
+def test_conjugate_inverse_norm_normalize(rng):
+    q = rng.standard_normal((200, 4)) * 3
+    n = np.linalg.norm(q, axis=1)
+    assert np.allclose(qa.norm(q), n, rtol=1e-15)
+    assert np.allclose(qa.normalize(q), q / n[:, None], rtol=1e-15)
+    assert np.array_equal(qa.conjugate(q), q * [1, -1, -1, -1])
+    assert np.allclose(qa.inverse(q), q * [1, -1, -1, -1] / n[:, None] ** 2)
+    assert np.allclose(qa.multiply(q, qa.inverse(q)), [1, 0, 0, 0], atol=1e-14)
+    assert np.allclose(qa.dot(q, q), n**2)
+    assert isinstance(qa.norm([1, 0, 0, 0]), np.floating)
+
+
+def test_degenerate_numbers_do_not_raise():
+    z = np.zeros(4)
+    assert np.isnan(qa.inverse(z)).all()
+    assert np.isnan(qa.normalize(z)).all()
+    assert qa.norm(z) == 0
+    nan = np.full(4, np.nan)
+    for f in (qa.conjugate, qa.inverse, qa.normalize, qa.exp, qa.log):
+        assert np.isnan(f(nan)).any()
+    assert np.isnan(qa.angle(nan))
+    assert np.isnan(qa.multiply(nan, [1, 0, 0, 0])).all()
+    assert qa.log(z)[0] == -np.inf
+
+
+def test_exp_log(rng):
+    q = rng.standard_normal((500, 4))
+    assert np.allclose(qa.exp(qa.log(q)), q, atol=1e-13)
+    # exp of a pure quaternion θu is the rotation by 2θ about u
+    r = rng.standard_normal((500, 3))
+    pure = np.concatenate([np.zeros((500, 1)), r / 2], axis=1)
+    want = Rotation.from_rotvec(r).as_quat(scalar_first=True)
+    assert np.allclose(qa.distance(qa.exp(pure), want), 0, atol=1e-12)
+    # tiny vector parts stay accurate
+    tiny = np.array([0.0, 1e-20, 0, 0])
+    assert np.allclose(qa.exp(tiny), [1, 1e-20, 0, 0], rtol=1e-15, atol=0)
+    assert np.allclose(qa.log([1.0, 1e-20, 0, 0]), [0, 1e-20, 0, 0], rtol=1e-15, atol=0)
+    assert np.allclose(qa.log([-2.0, 0, 0, 0]), [np.log(2), np.pi, 0, 0])
+    # log of a unit quaternion is pure with |u| = half the angle
+    u = qa.random(100, rng)
+    lg = qa.log(u)
+    assert np.allclose(lg[:, 0], 0, atol=1e-15)
+    assert np.allclose(2 * np.linalg.norm(lg[:, 1:], axis=1), np.arccos(np.clip(u[:, 0], -1, 1)) * 2, atol=1e-7)
+
+
+def test_power(rng):
+    q = qa.random(200, rng)
+    assert np.allclose(qa.power(q, 2), qa.multiply(q, q), atol=1e-14)
+    assert np.allclose(qa.power(q, 0), [1, 0, 0, 0])
+    assert np.allclose(qa.power(q, 1), q, atol=1e-14)
+    assert np.allclose(qa.multiply(qa.power(q, 0.5), qa.power(q, 0.5)), q, atol=1e-14)
+    # for w >= 0, q^t is the rotation about q's axis by t times q's angle
+    t = rng.uniform(-2, 2, 200)
+    want = Rotation.from_rotvec(R(q).as_rotvec() * t[:, None]).as_quat(scalar_first=True)
+    assert np.allclose(qa.distance(qa.power(qa.canonical(q), t), want), 0, atol=1e-12)
+    tt = rng.uniform(0, 1, 200)
+    qc = qa.canonical(q)  # w >= 0: the rotation angle of q^t is t times q's angle
+    assert np.allclose(qa.angle(qa.power(qc, tt)), tt * qa.angle(qc), atol=1e-12)
+    many = qa.power(q[0], np.linspace(0, 1, 7))  # one q, M exponents
+    assert many.shape == (7, 4)
+
+
+def test_canonical_matches_scipy(rng):
+    q = qa.random(500, rng)
+    q[:10, 0] = 0  # w == 0 ties
+    q[:5, 1] = 0
+    q[:2, 2] = 0
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    for s in (1, -1):
+        got = qa.canonical(s * q)
+        assert np.allclose(got, R(s * q).as_quat(canonical=True, scalar_first=True), rtol=0, atol=1e-15)
+    assert np.array_equal(qa.canonical([0, 0, 0, -2.0]), [0, 0, 0, 2.0])
+
+
+def test_angle_and_distance(rng):
+    q = qa.random(500, rng)
+    assert np.allclose(qa.angle(q), R(q).magnitude(), atol=1e-14)
+    assert np.allclose(qa.angle(-3 * q), R(q).magnitude(), atol=1e-14)
+    assert qa.angle(qa.identity()) == 0
+    assert np.isclose(qa.angle([0, 1, 0, 0]), np.pi)
+    # tiny angles: no arccos round-off
+    tiny = Rotation.from_rotvec([[1e-9, 0, 0], [0, 3e-15, 0]]).as_quat(scalar_first=True)
+    assert np.allclose(qa.angle(tiny), [1e-9, 3e-15], rtol=1e-12, atol=0)
+    p = qa.random(500, rng)
+    want = (R(p).inv() * R(q)).magnitude()
+    assert np.allclose(qa.distance(p, q), want, atol=1e-13)
+    assert np.allclose(qa.distance(p, -q), want, atol=1e-13)
+    assert np.allclose(qa.distance(q, -q), 0, atol=1e-15)
+
+
+def test_cumprod(rng):
+    q = qa.random((6, 5), rng)
+    got = qa.cumprod(q)
+    acc = q[0]
+    for i in range(6):
+        if i:
+            acc = qa.multiply(acc, q[i])
+        assert np.allclose(got[i], acc, atol=1e-14)
+    along1 = qa.cumprod(q, axis=1)
+    assert np.allclose(along1, np.swapaxes(qa.cumprod(np.swapaxes(q, 0, 1)), 0, 1))
+    assert np.allclose(qa.cumprod(q, axis=-1), along1)
+    assert qa.cumprod(q.astype(np.float32)).dtype == np.float32
+    with pytest.raises(ValueError, match="axis"):
+        qa.cumprod(q, axis=2)
+    with pytest.raises(ValueError, match="`q`"):
+        qa.cumprod(np.zeros(4))
+
+
+def test_identity_and_random():
+    assert np.array_equal(qa.identity(), [1, 0, 0, 0])
+    assert qa.identity((2, 3)).shape == (2, 3, 4)
+    assert qa.identity(5, np.float32).dtype == np.float32
+    with pytest.raises(TypeError):
+        qa.identity(dtype=int)
+    a = qa.random(10_000, rng=7)
+    assert np.array_equal(a, qa.random(10_000, rng=7))
+    assert np.allclose(np.linalg.norm(a, axis=1), 1)
+    assert qa.random().shape == (4,) and qa.random(3, dtype=np.float32).dtype == np.float32
+    # Haar measure: rotation angles have density (1 − cos θ)/π, mean π/2 + 2/π
+    assert abs(qa.angle(a).mean() - (np.pi / 2 + 2 / np.pi)) < 0.02
+    # every axis direction equally likely
+    assert np.all(np.abs(a[:, 1:].mean(axis=0)) < 0.02)
+
+
+def test_mean_matches_scipy(rng):
+    q = qa.random(300, rng)
+    base = Rotation.from_rotvec([0.3, 0.2, 0.1]).as_quat(scalar_first=True)
+    q = qa.multiply(base, qa.power(qa.canonical(q), 0.1))
+    w = rng.uniform(0, 1, 300)
+    for weights in (None, w):
+        want = R(q).mean(weights=weights).as_quat(scalar_first=True)
+        got = qa.mean(q, weights)
+        assert np.allclose(qa.distance(got, want), 0, atol=1e-12)
+        flips = q * np.where(rng.uniform(size=300) < 0.5, -1, 1)[:, None]
+        assert np.allclose(qa.distance(qa.mean(flips * 2.5, weights), want), 0, atol=1e-12)
+    with pytest.raises(ValueError, match="weights"):
+        qa.mean(q, -w)
+    with pytest.raises(ValueError, match="weights"):
+        qa.mean(q, w[:3])
+
+
+# ---------------------------------------------------------------- properties
+
+
+@settings(max_examples=60, deadline=None)
+@given(quat, quat)
+def test_norm_is_multiplicative(p, q):
+    assert np.isclose(qa.norm(qa.multiply(p, q)), qa.norm(p) * qa.norm(q), rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(quat, quat, quat)
+def test_associative(p, q, r):
+    lhs = qa.multiply(qa.multiply(p, q), r)
+    rhs = qa.multiply(p, qa.multiply(q, r))
+    assert np.allclose(lhs, rhs, rtol=1e-12, atol=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(quat)
+def test_inverse_property(q):
+    if qa.norm(q) > 1e-3:
+        assert np.allclose(qa.multiply(q, qa.inverse(q)), [1, 0, 0, 0], atol=1e-12)
+        assert np.allclose(qa.multiply(qa.inverse(q), q), [1, 0, 0, 0], atol=1e-12)
+    assert np.allclose(qa.conjugate(qa.conjugate(q)), q)
+
+
+@settings(max_examples=60, deadline=None)
+@given(quat, quat)
+def test_conjugate_reverses_products(p, q):
+    assert np.allclose(
+        qa.conjugate(qa.multiply(p, q)), qa.multiply(qa.conjugate(q), qa.conjugate(p)), atol=1e-9
+    )
