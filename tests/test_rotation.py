@@ -1,0 +1,73 @@
+"""quatarray.rotation.rotate against scipy's Rotation.apply."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial.transform import Rotation
+
+import quatarray as qa
+
+
+def test_worked_example():
+    # rotating (0, 1, 1) by 90° about y gives (1, 1, 0)
+    q = [np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]
+    assert np.allclose(qa.rotate(q, [0, 1, 1]), [1, 1, 0], atol=1e-15)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_matches_scipy_apply(rng, dtype):
+    q = qa.random(2000, rng)
+    v = rng.standard_normal((2000, 3))
+    got = qa.rotate(q.astype(dtype), v.astype(dtype))
+    assert got.dtype == dtype
+    want = Rotation.from_quat(q, scalar_first=True).apply(v)
+    assert np.allclose(got, want, atol=1e-5 if dtype == np.float32 else 1e-14)
+    assert np.allclose(qa.rotate(-q, v), want, atol=1e-14)  # q and −q: same rotation
+
+
+def test_non_unit_quaternions_need_no_normalising(rng):
+    q = qa.random(500, rng)
+    v = rng.standard_normal((500, 3))
+    scale = rng.uniform(1e-3, 1e3, (500, 1))
+    assert np.allclose(qa.rotate(q * scale, v), qa.rotate(q, v), atol=1e-12)
+    assert np.isnan(qa.rotate([0, 0, 0, 0], [1, 2, 3])).all()
+
+
+def test_edge_rotations():
+    v = np.array([1.0, 2.0, 3.0])
+    assert np.array_equal(qa.rotate(qa.identity(), v), v)
+    assert np.allclose(qa.rotate([0, 1, 0, 0], v), [1, -2, -3])  # 180° about x
+    assert np.allclose(qa.rotate([0, 0, 0, 1], v), [-1, -2, 3])  # 180° about z
+    tiny = Rotation.from_rotvec([0, 0, 1e-12]).as_quat(scalar_first=True)
+    assert np.allclose(qa.rotate(tiny, [1, 0, 0]), [1, 1e-12, 0], rtol=1e-12, atol=1e-24)
+    assert np.isnan(qa.rotate([np.nan, 0, 0, 0], v)).all()
+
+
+def test_broadcasting_and_out(rng):
+    q = qa.random((4, 1), rng)
+    v = rng.standard_normal((5, 3))
+    got = qa.rotate(q, v)
+    assert got.shape == (4, 5, 3)
+    assert np.allclose(got[2, 3], qa.rotate(q[2, 0], v[3]))
+    one_q = qa.rotate(q[0, 0], v)
+    assert one_q.shape == (5, 3)
+    vv = v.copy()
+    assert qa.rotate(q[0, 0], vv, out=vv) is vv and np.array_equal(vv, one_q)
+    with pytest.raises(ValueError, match=r"Expected `v` to have shape \(\.\.\., 3\), got \(5, 4\)\."):
+        qa.rotate(q, np.zeros((5, 4)))
+    with pytest.raises(ValueError, match="out"):
+        qa.rotate(q[0, 0], v, out=np.empty((5, 4)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(np.float64, 4, elements=st.floats(-5, 5)).filter(lambda q: np.linalg.norm(q) > 1e-2),
+    arrays(np.float64, 3, elements=st.floats(-100, 100)),
+)
+def test_preserves_length_and_composes(q, v):
+    r = qa.rotate(q, v)
+    assert np.isclose(np.linalg.norm(r), np.linalg.norm(v), rtol=1e-12, atol=1e-9)
+    p = np.array([0.5, -0.5, 0.5, 0.5])
+    assert np.allclose(qa.rotate(qa.multiply(p, q), v), qa.rotate(p, r), atol=1e-9)
