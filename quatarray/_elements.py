@@ -9,6 +9,8 @@ validate or raise, and they keep the float type of their arguments
 
 import math
 
+import numpy as np
+
 from ._jit import element, like
 
 
@@ -62,7 +64,7 @@ def qdot(p, q):
 
 @element
 def qnorm(q):
-    return math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
 @element
@@ -94,7 +96,7 @@ def cross(a, b):
 
 @element
 def vnorm(v):
-    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 @element
@@ -118,7 +120,7 @@ def qrotate(q, v):
 @element
 def half_angle(q):
     """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q."""
-    return math.atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
+    return np.arctan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
 
 
 @element
@@ -127,16 +129,16 @@ def sinc(x):
     if abs(x) < like(x, 1e-4):
         x2 = x * x
         return like(x, 1.0) - x2 / like(x, 6.0) + x2 * x2 / like(x, 120.0)
-    return math.sin(x) / x
+    return np.sin(x) / x
 
 
 @element
 def qexp(q):
     """exp(w + u) = e^w (cos|u|, sin|u| u/|u|)."""
     th = vnorm((q[1], q[2], q[3]))
-    e = math.exp(q[0])
+    e = np.exp(q[0])
     s = e * sinc(th)
-    return (e * math.cos(th), s * q[1], s * q[2], s * q[3])
+    return (e * np.cos(th), s * q[1], s * q[2], s * q[3])
 
 
 @element
@@ -147,11 +149,11 @@ def qlog(q):
     """
     un = vnorm((q[1], q[2], q[3]))
     n = qnorm(q)
-    lw = math.log(n)
+    lw = np.log(n)
     zero = like(n, 0.0)
     if un == zero:
         if q[0] < zero:
             return (lw, like(n, math.pi), zero, zero)
         return (lw, zero, zero, zero)
-    f = math.atan2(un, q[0]) / un
+    f = np.arctan2(un, q[0]) / un
     return (lw, f * q[1], f * q[2], f * q[3])
