@@ -10,7 +10,10 @@ import math
 
 import numpy as np
 
-_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_F32 = np.dtype(np.float32)
+_F64 = np.dtype(np.float64)
+_FLOATS = (_F32, _F64)
+_WEAK = (float, int, bool)
 
 
 def _spec(core):
@@ -24,7 +27,7 @@ def shape_error(name, expected, got):
 
 def is_weak(x):
     """Python scalars (``0.5``, ``3``) do not take part in dtype promotion."""
-    return type(x) in (float, int, bool)
+    return type(x) in _WEAK
 
 
 def as_float(x, name, dtype=None):
@@ -87,9 +90,12 @@ def leading(arrays, cores, names):
 
 def flatten(a, lead, core):
     """``a`` broadcast to ``lead + core`` and viewed as ``(n,) + core``."""
+    core = tuple(core)
     if a.shape[: a.ndim - len(core)] != lead:
-        a = np.broadcast_to(a, lead + tuple(core))
-    return a.reshape((math.prod(lead),) + tuple(core))
+        a = np.broadcast_to(a, lead + core)
+    if len(lead) == 1:
+        return a
+    return a.reshape((math.prod(lead),) + core)
 
 
 def check_out(out, shape, dtype):
@@ -136,30 +142,48 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
     -------
     ndarray or tuple of ndarray
     """
-    arrays, weak, cores, names = [], [], [], []
+    arrays, cores, leads = [], [], []
+    all32, strong = True, False
     for value, name, core in inputs:
-        a = as_float(value, name)
-        if len(core):
-            check_core(a, name, core)
+        if type(value) is np.ndarray and (value.dtype is _F64 or value.dtype is _F32):
+            a = value  # the common case, checked without a function call
+        else:
+            a = as_float(value, name)
+        k = len(core)
+        shape = a.shape
+        if k:
+            if len(shape) < k or shape[-k:] != core:
+                raise shape_error(name, _spec(core), shape)
+            leads.append(shape[:-k])
+        else:
+            leads.append(shape)
+        if type(value) not in _WEAK:
+            strong = True
+            all32 = all32 and a.dtype == _F32
         arrays.append(a)
-        weak.append(is_weak(value))
-        cores.append(tuple(core))
-        names.append(name)
-    dtype = np.dtype(result) if result is not None else result_dtype(arrays, weak)
-    lead = leading(arrays, cores, names)
+        cores.append(core)
+    if result is not None:
+        dtype = np.dtype(result)
+    else:
+        dtype = _F32 if (strong and all32) else _F64
+    lead = leads[0]
+    for s in leads:
+        if s != lead:
+            lead = leading(arrays, cores, [i[1] for i in inputs])
+            break
     n = math.prod(lead)
     flat = [flatten(a if a.dtype == dtype else a.astype(dtype), lead, c) for a, c in zip(arrays, cores)]
 
     if out is None:
-        outs = [np.empty((n,) + tuple(c), dtype) for c in out_cores]
+        outs = [np.empty((n,) + c, dtype) for c in out_cores]
         kernel(*flat, *outs)
-        res = [o.reshape(lead + tuple(c)) for o, c in zip(outs, out_cores)]
+        res = [o.reshape(lead + c) for o, c in zip(outs, out_cores)]
         res = [r[()] if r.ndim == 0 else r for r in res]
         return res[0] if len(res) == 1 else tuple(res)
 
     if len(out_cores) != 1:
         raise ValueError("`out` is only accepted by functions with a single result.")
-    core = tuple(out_cores[0])
+    core = out_cores[0]
     check_out(out, lead + core, dtype)
     try:
         o = np.reshape(out, (n,) + core, copy=False)
