@@ -1,0 +1,780 @@
+"""Conversions between quaternions (w, x, y, z) and other rotation representations.
+
+Rotation matrices, rotation vectors, axis–angle pairs, the scalar-last
+(x, y, z, w) layout, ``scipy.spatial.transform.Rotation`` objects, the 4×4
+left/right multiplication matrices and 2×2 complex (SU(2)) matrices.
+
+Every conversion from a quaternion accepts any non-zero scale (the rotation
+of q/|q| is meant); a zero quaternion gives nan. Leading dimensions
+broadcast like numpy; float32 stays float32 and float64 stays float64.
+Euler angles live in :mod:`quatarray.euler`.
+"""
+
+import math
+
+import numpy as np
+
+from . import _elements as E
+from ._jit import element, like, prange, rowloop
+from ._validate import as_float, check_core, elementwise, shape_error
+
+Q = (4,)
+V = (3,)
+M3 = (3, 3)
+M4 = (4, 4)
+
+_TO_DEG = 180.0 / math.pi
+_FROM_DEG = math.pi / 180.0
+
+# --------------------------------------------------------------------------
+# per-element formulas
+
+
+@element
+def load33(a, i):
+    return (
+        a[i, 0, 0], a[i, 0, 1], a[i, 0, 2],
+        a[i, 1, 0], a[i, 1, 1], a[i, 1, 2],
+        a[i, 2, 0], a[i, 2, 1], a[i, 2, 2],
+    )  # fmt: skip
+
+
+@element
+def store33(out, i, m):
+    out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = m[0], m[1], m[2]
+    out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = m[3], m[4], m[5]
+    out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = m[6], m[7], m[8]
+
+
+@element
+def qmatrix(q):
+    """Row-major 3×3 rotation matrix of q/|q| (9-tuple); zero q gives nan."""
+    w, x, y, z = q
+    s = like(w, 2.0) / E.qdot(q, q)
+    one = like(w, 1.0)
+    xx, yy, zz = s * x * x, s * y * y, s * z * z
+    xy, xz, yz = s * x * y, s * x * z, s * y * z
+    wx, wy, wz = s * w * x, s * w * y, s * w * z
+    return (
+        one - yy - zz, xy - wz, xz + wy,
+        xy + wz, one - xx - zz, yz - wx,
+        xz - wy, yz + wx, one - xx - yy,
+    )  # fmt: skip
+
+
+@element
+def det33(a):
+    return (
+        a[0] * (a[4] * a[8] - a[5] * a[7])
+        - a[1] * (a[3] * a[8] - a[5] * a[6])
+        + a[2] * (a[3] * a[7] - a[4] * a[6])
+    )
+
+
+@element
+def cofactor33(a):
+    """Cofactor matrix: equals det(a)·a⁻ᵀ."""
+    return (
+        a[4] * a[8] - a[5] * a[7], a[5] * a[6] - a[3] * a[8], a[3] * a[7] - a[4] * a[6],
+        a[2] * a[7] - a[1] * a[8], a[0] * a[8] - a[2] * a[6], a[1] * a[6] - a[0] * a[7],
+        a[1] * a[5] - a[2] * a[4], a[2] * a[3] - a[0] * a[5], a[0] * a[4] - a[1] * a[3],
+    )  # fmt: skip
+
+
+@element
+def sumsq9(a):
+    s = a[0] * a[0]
+    for k in range(1, 9):
+        s += a[k] * a[k]
+    return s
+
+
+@element
+def near_orthogonal(a):
+    """scipy's test ``np.isclose(a aᵀ, I, atol=1e-12)`` (default rtol 1e-5)."""
+    atol = like(a[0], 1e-12)
+    dtol = atol + like(a[0], 1e-5)
+    one = like(a[0], 1.0)
+    g00 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    g11 = a[3] * a[3] + a[4] * a[4] + a[5] * a[5]
+    g22 = a[6] * a[6] + a[7] * a[7] + a[8] * a[8]
+    g01 = a[0] * a[3] + a[1] * a[4] + a[2] * a[5]
+    g02 = a[0] * a[6] + a[1] * a[7] + a[2] * a[8]
+    g12 = a[3] * a[6] + a[4] * a[7] + a[5] * a[8]
+    return (
+        abs(g00 - one) <= dtol
+        and abs(g11 - one) <= dtol
+        and abs(g22 - one) <= dtol
+        and abs(g01) <= atol
+        and abs(g02) <= atol
+        and abs(g12) <= atol
+    )
+
+
+@element
+def polar33(a, eps):
+    """Orthogonal polar factor of a (det > 0): the nearest rotation, U Vᵀ of an SVD.
+
+    Newton's iteration X ← (ζX + X⁻ᵀ/ζ)/2 with Higham's Frobenius-norm
+    scaling ζ; quadratic convergence, so once a step moves less than √eps
+    the iterate is exact to rounding.
+    """
+    half = like(eps, 0.5)
+    tol = np.sqrt(eps)
+    x = a
+    for _ in range(40):
+        c = cofactor33(x)
+        d = det33(x)
+        # ‖X⁻¹‖_F / ‖X‖_F = ‖cof X‖_F / (|det X| ‖X‖_F)
+        zeta = np.sqrt(np.sqrt(sumsq9(c) / sumsq9(x)) / abs(d))
+        f = half * zeta
+        g = half / (zeta * d)
+        nx = (
+            f * x[0] + g * c[0], f * x[1] + g * c[1], f * x[2] + g * c[2],
+            f * x[3] + g * c[3], f * x[4] + g * c[4], f * x[5] + g * c[5],
+            f * x[6] + g * c[6], f * x[7] + g * c[7], f * x[8] + g * c[8],
+        )  # fmt: skip
+        step = sumsq9((
+            nx[0] - x[0], nx[1] - x[1], nx[2] - x[2],
+            nx[3] - x[3], nx[4] - x[4], nx[5] - x[5],
+            nx[6] - x[6], nx[7] - x[7], nx[8] - x[8],
+        ))  # fmt: skip
+        x = nx
+        if not step > tol * tol:  # also stops on nan
+            break
+    return x
+
+
+@element
+def shepperd(a):
+    """Unit quaternion of a rotation matrix (9-tuple), branching on the largest of
+    the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
+    the component picked by the branch comes out positive."""
+    one = like(a[0], 1.0)
+    two = like(a[0], 2.0)
+    tr = a[0] + a[4] + a[8]
+    choice = 0
+    best = a[0]
+    if a[4] > best:
+        choice, best = 1, a[4]
+    if a[8] > best:
+        choice, best = 2, a[8]
+    if tr > best:
+        choice = 3
+    if choice == 0:
+        q = (a[7] - a[5], one - tr + two * a[0], a[3] + a[1], a[6] + a[2])
+    elif choice == 1:
+        q = (a[2] - a[6], a[3] + a[1], one - tr + two * a[4], a[7] + a[5])
+    elif choice == 2:
+        q = (a[3] - a[1], a[6] + a[2], a[7] + a[5], one - tr + two * a[8])
+    else:
+        q = (one + tr, a[7] - a[5], a[2] - a[6], a[3] - a[1])
+    return E.qnormalize(q)
+
+
+@element
+def canonical_flip(q):
+    """True when scipy's canonical form (w > 0, ties to the first non-zero of
+    x, y, z being positive) needs the sign of q flipped."""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    return w < zero or (w == zero and (x < zero or (x == zero and (y < zero or (y == zero and z < zero)))))
+
+
+@element
+def qrotvec(q):
+    """Rotation vector θ·axis of q/|q| with θ = 2 atan2(|u|, |w|) in [0, π]."""
+    if canonical_flip(q):
+        q = E.qneg(q)
+    w, x, y, z = q
+    un = E.vnorm((x, y, z))
+    if un == like(w, 0.0):
+        f = like(w, 2.0) / w  # identity: 0·f = 0; zero q: 0·inf = nan
+    else:
+        f = like(w, 2.0) * np.arctan2(un, w) / un
+    return (f * x, f * y, f * z)
+
+
+@element
+def qaxis_angle(q):
+    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan."""
+    if canonical_flip(q):
+        q = E.qneg(q)
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    un = E.vnorm((x, y, z))
+    ang = like(w, 2.0) * np.arctan2(un, w)
+    if un == zero:
+        if w > zero:
+            return (like(w, 1.0), zero, zero), ang
+        nan = like(w, np.nan)
+        return (nan, nan, nan), nan
+    return (x / un, y / un, z / un), ang
+
+
+@element
+def rotvec_quat(v):
+    """exp of (0, v/2): (cos(θ/2), sin(θ/2)/θ · v), θ = |v|; exact for tiny θ."""
+    h = like(v[0], 0.5) * E.vnorm(v)
+    k = like(v[0], 0.5) * E.sinc(h)
+    return (np.cos(h), k * v[0], k * v[1], k * v[2])
+
+
+@element
+def left_matrix(q):
+    """L (row-major 16-tuple) with L @ p = q ⊗ p."""
+    w, x, y, z = q
+    return (
+        w, -x, -y, -z,
+        x, w, -z, y,
+        y, z, w, -x,
+        z, -y, x, w,
+    )  # fmt: skip
+
+
+@element
+def right_matrix(q):
+    """R (row-major 16-tuple) with R @ p = p ⊗ q."""
+    w, x, y, z = q
+    return (
+        w, -x, -y, -z,
+        x, w, z, -y,
+        y, -z, w, x,
+        z, y, -x, w,
+    )  # fmt: skip
+
+
+# --------------------------------------------------------------------------
+# batched loops
+
+
+@rowloop
+def _as_matrix(q, out):
+    for i in prange(q.shape[0]):
+        store33(out, i, qmatrix(E.load4(q, i)))
+
+
+@rowloop
+def _from_matrix(m, out):
+    # Returns the first row with det ≤ 0 (its output is nan), or -1.
+    n = m.shape[0]
+    eps = like(m, np.finfo(m.dtype).eps)
+    bad = n
+    for i in prange(n):
+        a = load33(m, i)
+        d = det33(a)
+        nan = like(d, np.nan)
+        if d <= like(d, 0.0):
+            bad = min(bad, i)
+            q = (nan, nan, nan, nan)
+        elif not np.isfinite(d):
+            q = (nan, nan, nan, nan)
+        elif near_orthogonal(a):
+            q = shepperd(a)
+        else:
+            q = shepperd(polar33(a, eps))
+        E.store4(out, i, q)
+    return bad if bad < n else -1
+
+
+@rowloop
+def _from_matrix_valid(m, out):
+    for i in prange(m.shape[0]):
+        E.store4(out, i, shepperd(load33(m, i)))
+
+
+@rowloop
+def _as_rotvec(q, scale, out):
+    for i in prange(q.shape[0]):
+        r = qrotvec(E.load4(q, i))
+        s = scale[i]
+        E.store3(out, i, (s * r[0], s * r[1], s * r[2]))
+
+
+@rowloop
+def _from_rotvec(r, scale, out):
+    for i in prange(r.shape[0]):
+        s = scale[i]
+        E.store4(out, i, rotvec_quat((s * r[i, 0], s * r[i, 1], s * r[i, 2])))
+
+
+@rowloop
+def _as_axis_angle(q, scale, axis, ang):
+    for i in prange(q.shape[0]):
+        u, a = qaxis_angle(E.load4(q, i))
+        E.store3(axis, i, u)
+        ang[i] = a * scale[i]
+
+
+@rowloop
+def _from_axis_angle(axis, ang, scale, out):
+    # Returns the first row whose axis is zero (its output is nan), or -1.
+    n = axis.shape[0]
+    bad = n
+    for i in prange(n):
+        u = E.load3(axis, i)
+        un = E.vnorm(u)
+        if un == like(un, 0.0):
+            bad = min(bad, i)
+        h = like(un, 0.5) * ang[i] * scale[i]
+        k = np.sin(h) / un
+        E.store4(out, i, (np.cos(h), k * u[0], k * u[1], k * u[2]))
+    return bad if bad < n else -1
+
+
+@rowloop
+def _as_xyzw(q, out):
+    for i in prange(q.shape[0]):
+        w, x, y, z = E.load4(q, i)
+        E.store4(out, i, (x, y, z, w))
+
+
+@rowloop
+def _from_xyzw(a, out):
+    for i in prange(a.shape[0]):
+        x, y, z, w = E.load4(a, i)
+        E.store4(out, i, (w, x, y, z))
+
+
+@rowloop
+def _as_left_matrix(q, out):
+    for i in prange(q.shape[0]):
+        m = left_matrix(E.load4(q, i))
+        for k in range(16):
+            out[i, k // 4, k % 4] = m[k]
+
+
+@rowloop
+def _as_right_matrix(q, out):
+    for i in prange(q.shape[0]):
+        m = right_matrix(E.load4(q, i))
+        for k in range(16):
+            out[i, k // 4, k % 4] = m[k]
+
+
+@rowloop
+def _as_su2(q, out):
+    # out: the float view (n, 2, 4) of a complex (n, 2, 2) array: re, im, re, im.
+    for i in prange(q.shape[0]):
+        w, x, y, z = E.load4(q, i)
+        out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = w, x, y, z
+        out[i, 1, 0], out[i, 1, 1], out[i, 1, 2], out[i, 1, 3] = -y, z, w, -x
+
+
+@rowloop
+def _from_su2(m, out):
+    # m: float view (n, 2, 4) of complex (n, 2, 2); averages the two copies of
+    # each component (the orthogonal projection onto [[a, b], [−b̄, ā]]).
+    for i in prange(m.shape[0]):
+        half = like(m, 0.5)
+        E.store4(
+            out,
+            i,
+            (
+                half * (m[i, 0, 0] + m[i, 1, 2]),
+                half * (m[i, 0, 1] - m[i, 1, 3]),
+                half * (m[i, 0, 2] - m[i, 1, 0]),
+                half * (m[i, 0, 3] + m[i, 1, 1]),
+            ),
+        )
+
+
+# --------------------------------------------------------------------------
+# helpers
+
+
+def _with_status(kernel, inputs, out_cores, out=None):
+    """``elementwise`` that also hands back the kernel's return value."""
+    status = []
+
+    def run(*arrays):
+        status.append(kernel(*arrays))
+
+    res = elementwise(run, inputs, out_cores, out)
+    return res, (status[0] if status else -1)
+
+
+def _row_name(index, lead):
+    if len(lead) <= 1:
+        return f"row {index}"
+    return f"index {tuple(int(k) for k in np.unravel_index(index, lead))}"
+
+
+def _to_unit(degrees):
+    """Factor from radians to the output unit."""
+    return _TO_DEG if degrees else 1.0
+
+
+def _from_unit(degrees):
+    """Factor from the input unit to radians."""
+    return _FROM_DEG if degrees else 1.0
+
+
+# --------------------------------------------------------------------------
+# public functions: matrices
+
+
+def as_matrix(q, out=None):
+    """Rotation matrices, shape ``(..., 3, 3)``, with ``as_matrix(q) @ v == rotate(q, v)``.
+
+    Any non-zero scale of `q` gives the rotation of q/|q|; a zero quaternion
+    gives a nan matrix.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternions (w, x, y, z).
+    out : ndarray, optional
+        Result array of shape ``(..., 3, 3)`` and the result dtype.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q = qa.from_axis_angle([0, 0, 1], np.pi / 2)  # 90° about z
+    >>> np.round(qa.as_matrix(q), 12) + 0.0
+    array([[ 0., -1.,  0.],
+           [ 1.,  0.,  0.],
+           [ 0.,  0.,  1.]])
+    """
+    return elementwise(_as_matrix, [(q, "q", Q)], [M3], out)
+
+
+def from_matrix(m, assume_valid=False, out=None):
+    """Quaternions of rotation matrices, as scipy's ``Rotation.from_matrix``.
+
+    By default each matrix is checked and, where needed, replaced by the
+    nearest rotation exactly as scipy does: a determinant ≤ 0 raises
+    ``ValueError`` naming the first such row; a matrix whose Gram matrix
+    m mᵀ is not ``np.isclose`` (atol 1e-12, rtol 1e-5) to the identity is
+    replaced by its orthogonal polar factor (scipy's U Vᵀ from an SVD,
+    computed here by Newton's polar iteration); then the quaternion is read
+    off with Shepperd's method. Non-finite matrices give nan.
+
+    ``assume_valid=True`` skips the determinant check and the projection and
+    runs only the Shepperd step (fast; for matrices known to be rotations).
+
+    The sign is scipy's, not canonical: the branch is chosen by the largest
+    of (m₀₀, m₁₁, m₂₂, trace) and the matching component (x, y, z or w) comes
+    out positive. Use :func:`quatarray.canonical` for w ≥ 0.
+
+    Parameters
+    ----------
+    m : array_like, shape (..., 3, 3)
+    assume_valid : bool, optional
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``. If a ``ValueError`` is raised it
+        may already be partly written.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit quaternions (w, x, y, z).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> m = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # 90° about z
+    >>> np.round(qa.from_matrix(m), 12)
+    array([0.70710678, 0.        , 0.        , 0.70710678])
+    >>> np.round(qa.from_matrix(np.diag([2.0, 2.0, 2.0])), 12)  # projected
+    array([1., 0., 0., 0.])
+    """
+    if assume_valid:
+        return elementwise(_from_matrix_valid, [(m, "m", M3)], [Q], out)
+    res, bad = _with_status(_from_matrix, [(m, "m", M3)], [Q], out)
+    if bad >= 0:
+        a = as_float(m, "m")
+        lead = res.shape[:-1]
+        a = np.broadcast_to(a, lead + M3).reshape((-1,) + M3)
+        raise ValueError(
+            "Expected `m` to hold rotation matrices with a positive determinant; "
+            f"{_row_name(bad, lead)} has determinant {np.linalg.det(a[bad]):.6g} "
+            f"(left-handed or degenerate): {a[bad].tolist()}."
+        )
+    return res
+
+
+# --------------------------------------------------------------------------
+# rotation vectors and axis-angle
+
+
+def as_rotvec(q, degrees=False, out=None):
+    """Rotation vectors θ·axis with θ = |r| in [0, π] (as scipy's ``as_rotvec``).
+
+    Computed as 2·atan2(|u|, |w|)·u/|u| on the canonical sign, so it is
+    accurate for tiny angles and for any non-zero scale of `q`. At exactly
+    180° the direction follows scipy (first non-zero component positive).
+    The identity gives 0, a zero quaternion nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    degrees : bool, optional
+        Return |r| in degrees.
+    out : ndarray, optional
+        Result array of shape ``(..., 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> qa.as_rotvec([np.cos(0.25), 0, 0, np.sin(0.25)])  # 0.5 rad about z
+    array([0. , 0. , 0.5])
+    >>> np.round(qa.as_rotvec([0, 1, 0, 0], degrees=True), 12)
+    array([180.,   0.,   0.])
+    """
+    return elementwise(_as_rotvec, [(q, "q", Q), (_to_unit(degrees), "degrees", ())], [V], out)
+
+
+def from_rotvec(r, degrees=False, out=None):
+    """Unit quaternions (cos(θ/2), sin(θ/2)·r/θ) of rotation vectors r, θ = |r|.
+
+    Accurate for tiny vectors (a series replaces sin(θ/2)/θ near 0). Vectors
+    longer than π are accepted (w < 0 then), as in scipy.
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3)
+    degrees : bool, optional
+        |r| is in degrees.
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.from_rotvec([0, 0, 180], degrees=True), 12)
+    array([0., 0., 0., 1.])
+    >>> qa.from_rotvec([1e-12, 0, 0])
+    array([1.e+00, 5.e-13, 0.e+00, 0.e+00])
+    """
+    return elementwise(_from_rotvec, [(r, "r", V), (_from_unit(degrees), "degrees", ())], [Q], out)
+
+
+def as_axis_angle(q, degrees=False):
+    """Unit rotation axis and angle in [0, π] of each quaternion.
+
+    The axis is that of the canonical sign (w ≥ 0), so the angle never
+    exceeds π; the identity gives axis (1, 0, 0) and angle 0; a zero
+    quaternion gives nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    degrees : bool, optional
+
+    Returns
+    -------
+    axis : ndarray, shape (..., 3)
+    angle : ndarray, shape (...)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> axis, angle = qa.as_axis_angle([0, 0, -1, 0], degrees=True)
+    >>> axis + 0.0, float(np.round(angle, 12))
+    (array([0., 1., 0.]), 180.0)
+    >>> qa.as_axis_angle(qa.identity())
+    (array([1., 0., 0.]), np.float64(0.0))
+    """
+    return elementwise(_as_axis_angle, [(q, "q", Q), (_to_unit(degrees), "degrees", ())], [V, ()])
+
+
+def from_axis_angle(axis, angle, degrees=False, out=None):
+    """Unit quaternions (cos(θ/2), sin(θ/2)·a/|a|) of axes `a` and angles θ.
+
+    The axis is normalised; a zero axis raises ``ValueError`` naming the row
+    (a nan axis gives nan). `axis` and `angle` broadcast against each other;
+    any real angle is accepted.
+
+    Parameters
+    ----------
+    axis : array_like, shape (..., 3)
+    angle : array_like, shape (...)
+    degrees : bool, optional
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.from_axis_angle([0, 0, 2], 90, degrees=True), 12)
+    array([0.70710678, 0.        , 0.        , 0.70710678])
+    >>> qa.from_axis_angle([[1, 0, 0], [0, 1, 0]], [0, np.pi]).round(12) + 0.0
+    array([[1., 0., 0., 0.],
+           [0., 0., 1., 0.]])
+    """
+    inputs = [(axis, "axis", V), (angle, "angle", ()), (_from_unit(degrees), "degrees", ())]
+    res, bad = _with_status(_from_axis_angle, inputs, [Q], out)
+    if bad >= 0:
+        raise ValueError(
+            f"Expected `axis` to be non-zero vectors; {_row_name(bad, res.shape[:-1])} is (0, 0, 0)."
+        )
+    return res
+
+
+# --------------------------------------------------------------------------
+# layouts and other libraries
+
+
+def as_xyzw(q, out=None):
+    """Scalar-last layout (x, y, z, w), as used by ROS and scipy's default.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.as_xyzw([1, 2, 3, 4])
+    array([2., 3., 4., 1.])
+    """
+    return elementwise(_as_xyzw, [(q, "q", Q)], [Q], out)
+
+
+def from_xyzw(a, out=None):
+    """Quaternions (w, x, y, z) from the scalar-last layout (x, y, z, w).
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.from_xyzw([2, 3, 4, 1])
+    array([1., 2., 3., 4.])
+    """
+    return elementwise(_from_xyzw, [(a, "a", Q)], [Q], out)
+
+
+def to_scipy(q):
+    """A ``scipy.spatial.transform.Rotation`` holding the rotations of `q`.
+
+    scipy normalises the quaternions (float64) and raises ``ValueError`` for a
+    zero quaternion.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> r = qa.to_scipy(qa.from_rotvec([0, 0, 0.5]))
+    >>> np.round(r.as_rotvec(), 12)
+    array([0. , 0. , 0.5])
+    """
+    from scipy.spatial.transform import Rotation
+
+    a = check_core(as_float(q, "q"), "q", Q)
+    return Rotation.from_quat(a, scalar_first=True)
+
+
+def from_scipy(rotation):
+    """Quaternions (w, x, y, z), float64, of a ``scipy.spatial.transform.Rotation``.
+
+    The sign is the one scipy stores (``as_quat(canonical=False)``).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from scipy.spatial.transform import Rotation
+    >>> np.round(qa.from_scipy(Rotation.from_rotvec([0, np.pi, 0])), 12)
+    array([0., 0., 1., 0.])
+    """
+    from scipy.spatial.transform import Rotation
+
+    if not isinstance(rotation, Rotation):
+        raise TypeError(
+            "Expected `rotation` to be a scipy.spatial.transform.Rotation, " f"got {type(rotation).__name__}."
+        )
+    return np.asarray(rotation.as_quat(scalar_first=True), dtype=np.float64)
+
+
+# --------------------------------------------------------------------------
+# matrix representations of the algebra
+
+
+def as_left_matrix(q, out=None):
+    """4×4 real matrices L with ``L @ p == multiply(q, p)``.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
+    >>> np.array_equal(qa.as_left_matrix(q) @ p, qa.multiply(q, p))
+    True
+    """
+    return elementwise(_as_left_matrix, [(q, "q", Q)], [M4], out)
+
+
+def as_right_matrix(q, out=None):
+    """4×4 real matrices R with ``R @ p == multiply(p, q)``.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
+    >>> np.array_equal(qa.as_right_matrix(q) @ p, qa.multiply(p, q))
+    True
+    """
+    return elementwise(_as_right_matrix, [(q, "q", Q)], [M4], out)
+
+
+def as_su2(q):
+    """2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
+
+    The map is multiplicative: ``as_su2(p) @ as_su2(q) == as_su2(multiply(p, q))``;
+    unit quaternions give SU(2) matrices. float32 → complex64, float64 → complex128.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.as_su2([1, 2, 3, 4])
+    array([[ 1.+2.j,  3.+4.j],
+           [-3.+4.j,  1.-2.j]])
+    """
+    f = elementwise(_as_su2, [(q, "q", Q)], [(2, 4)])
+    return f.view(np.complex64 if f.dtype == np.float32 else np.complex128)
+
+
+def from_su2(m, out=None):
+    """Quaternions of 2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
+
+    Each component appears twice in the matrix; the two copies are averaged,
+    which is exact for matrices of this form and the nearest quaternion
+    matrix (Frobenius) for any other. complex64 → float32, complex128 (and
+    real input, read as having zero imaginary part) → float64.
+
+    Parameters
+    ----------
+    m : array_like, shape (..., 2, 2)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.from_su2([[1 + 2j, 3 + 4j], [-3 + 4j, 1 - 2j]])
+    array([1., 2., 3., 4.])
+    """
+    a = m if isinstance(m, np.ndarray) else np.asarray(m)
+    kind = a.dtype.kind
+    if kind == "c":
+        ctype = np.complex64 if a.dtype == np.complex64 else np.complex128
+    elif kind == "f" and a.dtype in (np.float16, np.float32):
+        ctype = np.complex64
+    elif kind in "fbiu":
+        ctype = np.complex128
+    else:
+        raise TypeError(f"Expected `m` to have a complex or real dtype, got {a.dtype}.")
+    if a.ndim < 2 or a.shape[-2:] != (2, 2):
+        raise shape_error("m", "(..., 2, 2)", a.shape)
+    a = np.ascontiguousarray(a, dtype=ctype)
+    f = a.view(np.float32 if ctype == np.complex64 else np.float64)
+    return elementwise(_from_su2, [(f, "m", (2, 4))], [Q], out)
