@@ -1,0 +1,26 @@
+"""Reading and writing rotation streams, chunk by chunk.
+
+Kept apart from the command line (:mod:`quatarray.cli`) so the readers and
+writers can be used on their own::
+
+    from quatarray import io
+    reader = io.open_stream("walk.bvh")            # format from extension/header
+    with io.open_writer("walk.csv", ["qw", "qx", "qy", "qz"], time=True, pos=True) as w:
+        for chunk in reader:
+            w.write(chunk.data, chunk.t, chunk.pos)
+
+Formats: npy (memory-mapped, one chunk mapped at a time), csv with named
+columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH.
+"""
+
+from .clean import Cleaner
+from .errors import DataError, UsageError
+from .formats import FORMATS, output_format
+from .readers import DEFAULT_CHUNK, open_stream, read_times
+from .streams import Chunk, concat, rechunk
+from .writers import check_output, open_writer
+
+__all__ = [
+    "Chunk", "Cleaner", "DataError", "UsageError", "FORMATS", "DEFAULT_CHUNK", "open_stream",
+    "read_times", "open_writer", "check_output", "output_format", "concat", "rechunk",
+]

@@ -1,0 +1,41 @@
+"""Format detection and the column names each format uses."""
+
+import os
+
+from .errors import DataError, UsageError
+
+FORMATS = ("auto", "npy", "csv", "tum", "euroc", "parquet", "bvh", "kitti")
+OUT_FORMATS = {".npy": "npy", ".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".txt": "tum"}
+
+# accepted header names (lower case) for each role in csv and parquet inputs
+TIME_NAMES = ("t", "time", "timestamp")
+POS_NAMES = (("x", "y", "z"), ("tx", "ty", "tz"), ("px", "py", "pz"))
+QUAT_NAMES = (("qw", "qx", "qy", "qz"), ("w", "x", "y", "z"))
+VEC_NAMES = (("x", "y", "z"), ("vx", "vy", "vz"))
+
+TUM_NAMES = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
+KITTI_NAMES = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in range(4)]
+EUROC_TIME = "timestamp"
+EUROC_POS = ["p_RS_R_x", "p_RS_R_y", "p_RS_R_z"]
+EUROC_QUAT = ["q_RS_w", "q_RS_x", "q_RS_y", "q_RS_z"]
+
+
+def by_extension(path):
+    ext = os.path.splitext(str(path))[1].lower()
+    return {".npy": "npy", ".parquet": "parquet", ".pq": "parquet", ".bvh": "bvh"}.get(ext)
+
+
+def output_format(path):
+    """The writer for OUT, chosen by its extension."""
+    ext = os.path.splitext(str(path))[1].lower()
+    fmt = OUT_FORMATS.get(ext)
+    if fmt is None:
+        raise UsageError(
+            f"{path}: cannot tell the output format from the extension {ext or '(none)'!r}; "
+            "use .npy, .csv, .parquet or .txt (TUM)"
+        )
+    return fmt
+
+
+def empty(name):
+    return DataError(f"{name}: empty file (no data rows)")

@@ -1,0 +1,746 @@
+"""Stream readers: npy (memory-mapped chunks), csv, tum, euroc, kitti, parquet, bvh.
+
+Every reader is an iterable of :class:`~quatarray.io.streams.Chunk` objects
+and describes its stream with a few attributes:
+
+``name``      the path as the user wrote it (used in messages)
+``format``    the format read
+``kind``      ``"quat"`` (a rotation stream, rows are (w, x, y, z)) or ``"vector"``
+``columns``   the source columns used, in the file's own names
+``layout``    how the quaternion columns were laid out in the file
+``has_time``, ``has_pos``
+``rows``      the row count when known before reading (npy, parquet, bvh), else None
+``skipped``   rows the parser dropped (``on_invalid="drop"`` only)
+
+``where(row)`` turns a data-row index into ``file:line`` (text) or
+``file: row N`` (binary) for error messages.
+
+Text formats are parsed by pyarrow's streaming CSV reader, block by block;
+only when pyarrow reports a malformed file is the file scanned line by line
+in Python, to name the first bad line.
+"""
+
+import os
+
+import numpy as np
+
+from . import formats as F
+from .errors import DataError, UsageError
+from .streams import Chunk
+
+DEFAULT_CHUNK = 1 << 18
+
+
+def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DEFAULT_CHUNK,
+                on_invalid="error", name=None):
+    """Open a stream file for chunked reading.
+
+    Parameters
+    ----------
+    path : str or path-like
+    fmt : {"auto", "npy", "csv", "tum", "euroc", "parquet", "bvh", "kitti"}
+        ``"auto"`` decides by extension and by the header.
+    kind : {"quat", "vector"}
+        A rotation stream or a stream of 3-vectors (``rotate``'s VECTORS).
+    layout : {"wxyz", "xyzw"}, optional
+        Order of quaternion columns in inputs without named columns
+        (npy, headerless csv); default wxyz.
+    joint : str, optional
+        BVH joint (default: the root).
+    chunk : int
+        Rows per chunk.
+    on_invalid : {"error", "drop"}
+        What the parser does with a malformed row (the row checks themselves
+        live in :class:`~quatarray.io.clean.Cleaner`).
+
+    Returns
+    -------
+    reader
+        An iterable of chunks with the attributes listed in the module docstring.
+    """
+    path = os.fspath(path)
+    name = name or path
+    if not os.path.exists(path):
+        raise UsageError(f"{name}: no such file")
+    if os.path.isdir(path):
+        raise UsageError(f"{name}: is a directory")
+    if fmt not in F.FORMATS:
+        raise UsageError(f"unknown format {fmt!r}")
+    if fmt == "auto":
+        fmt = F.by_extension(path) or "text"
+    if joint is not None and fmt != "bvh":
+        raise UsageError(f"{name}: --joint applies to bvh files only")
+    if layout not in (None, "wxyz", "xyzw"):
+        raise UsageError(f"unknown layout {layout!r}")
+    chunk = int(chunk)
+    if chunk < 1:
+        raise UsageError(f"--chunk must be at least 1, got {chunk}")
+    if fmt == "npy":
+        return NpyReader(path, name, kind, layout, chunk)
+    if fmt == "parquet":
+        return ParquetReader(path, name, kind, chunk)
+    if fmt == "bvh":
+        if kind != "quat":
+            raise DataError(f"{name}: a bvh file holds rotations, not vectors")
+        return BvhReader(path, name, joint, chunk, on_invalid)
+    return TextReader(path, name, fmt, kind, layout, chunk, on_invalid)
+
+
+class Reader:
+    kind = "quat"
+    layout = "wxyz"
+    has_time = False
+    has_pos = False
+    rows = None
+    skipped = 0
+    format = ""
+    columns = ()
+
+    @property
+    def noun(self):
+        return "quaternion" if self.kind == "quat" else "vector"
+
+    def where(self, row):
+        return f"{self.name}: row {row}"
+
+
+def _reorder(q, layout):
+    """(n, 4) quaternion columns in file order → (w, x, y, z)."""
+    if layout == "xyzw":
+        return q[:, [3, 0, 1, 2]]
+    return q
+
+
+# --------------------------------------------------------------------------
+# npy
+
+
+class NpyReader(Reader):
+    """A ``.npy`` array read one memory-mapped chunk at a time.
+
+    Each chunk maps only its own byte range and the map is released when the
+    chunk is dropped, so resident memory stays bounded by a few chunks
+    whatever the file size.
+    """
+
+    format = "npy"
+
+    def __init__(self, path, name, kind, layout, chunk):
+        self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        self.layout = layout or "wxyz"
+        try:
+            with open(path, "rb") as f:
+                version = np.lib.format.read_magic(f)
+                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                shape, fortran, dtype = read(f)
+                self.offset = f.tell()
+        except (ValueError, OSError, EOFError) as exc:
+            if os.path.getsize(path) == 0:
+                raise F.empty(name) from None
+            raise DataError(f"{name}: not a valid .npy file ({exc})") from None
+        if dtype.kind not in "fiub" or dtype.fields is not None:
+            raise DataError(f"{name}: expected an array of real numbers, got dtype {dtype}")
+        self.dtype, self.shape, self.fortran = dtype, shape, fortran
+        if kind == "quat":
+            if len(shape) == 2 and shape[1] == 4:
+                self.core, self.columns = (4,), ["w", "x", "y", "z"] if self.layout == "wxyz" else ["x", "y", "z", "w"]
+            elif len(shape) == 3 and shape[1:] == (3, 3):
+                self.core, self.columns, self.layout = (3, 3), ["matrix 3x3"], "matrix"
+            else:
+                raise DataError(
+                    f"{name}: expected quaternions of shape (N, 4) (or rotation matrices (N, 3, 3)), got {shape}"
+                )
+        else:
+            if len(shape) == 2 and shape[1] == 3:
+                self.core, self.columns = (3,), ["x", "y", "z"]
+            else:
+                raise DataError(f"{name}: expected vectors of shape (N, 3), got {shape}")
+        self.rows = shape[0]
+        if self.rows == 0:
+            raise F.empty(name)
+        size = self.offset + int(np.prod(shape)) * dtype.itemsize
+        if os.path.getsize(path) < size:
+            raise DataError(f"{name}: truncated file ({os.path.getsize(path)} bytes, the header promises {size})")
+
+    def _block(self, a, b):
+        if self.fortran:
+            whole = np.load(self.path, mmap_mode="r")
+            return np.ascontiguousarray(whole[a:b])
+        rowbytes = int(np.prod(self.core)) * self.dtype.itemsize
+        return np.memmap(self.path, self.dtype, "r", offset=self.offset + a * rowbytes, shape=(b - a,) + self.core)
+
+    def __iter__(self):
+        for a in range(0, self.rows, self.chunk):
+            b = min(a + self.chunk, self.rows)
+            block = self._block(a, b)
+            if self.dtype.kind != "f" or not self.dtype.isnative:
+                block = block.astype(np.float64 if self.dtype.kind != "f" else self.dtype.newbyteorder("="))
+            if self.core == (3, 3):
+                yield Chunk(_from_matrix(block, self, a), row0=a)
+            elif self.kind == "quat":
+                yield Chunk(_reorder(block, self.layout), row0=a)
+            else:
+                yield Chunk(block, row0=a)
+            del block
+
+
+def _from_matrix(m, reader, row0, bad_ok=False):
+    """Quaternions of (n, 3, 3) rotation matrices; rows that are not rotations become nan
+    (and raise in error mode)."""
+    import quatarray as qa
+
+    m = np.asarray(m, dtype=np.float64) if m.dtype.kind != "f" else m
+    det = np.linalg.det(m) if len(m) else np.zeros(0)
+    ok = np.isfinite(det) & (det > 0)
+    if ok.all():
+        return qa.from_matrix(m)
+    i = int(np.argmin(ok))
+    if not bad_ok and np.isfinite(m[i]).all():
+        raise DataError(f"{reader.where(row0 + i)}: not a rotation matrix (determinant {det[i]:.6g})")
+    q = np.full(m.shape[:1] + (4,), np.nan, dtype=m.dtype)
+    if ok.any():
+        q[ok] = qa.from_matrix(m[ok])
+    return q
+
+
+# --------------------------------------------------------------------------
+# text: csv, tum, euroc, kitti
+
+
+def _is_number(s):
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def _split(line, delim):
+    return line.split() if delim == " " else [f.strip() for f in line.split(delim)]
+
+
+def _find_roles(names, kind, name, lineno):
+    """Map header names to (time, pos, quat/vec) columns, or raise for a missing column."""
+    low = {n.strip().lower(): n for n in names}
+    t = next((low[k] for k in F.TIME_NAMES if k in low), None)
+    if kind == "quat":
+        pos = next(([low[k] for k in c] for c in F.POS_NAMES if all(k in low for k in c)), None)
+        cands = F.QUAT_NAMES if pos is None else F.QUAT_NAMES[:1]
+        q = next(([low[k] for k in c] for c in cands if all(k in low for k in c)), None)
+        if q is None:
+            missing = [k for k in F.QUAT_NAMES[0] if k not in low]
+            raise DataError(
+                f"{name}:{lineno}: missing column {', '.join(missing)} "
+                f"(need qw, qx, qy, qz; the header has {', '.join(n.strip() for n in names)})"
+            )
+        return t, pos, q
+    v = next(([low[k] for k in c] for c in F.VEC_NAMES if all(k in low for k in c)), None)
+    if v is None:
+        missing = [k for k in F.VEC_NAMES[0] if k not in low]
+        raise DataError(f"{name}:{lineno}: missing column {', '.join(missing)} (need x, y, z)")
+    return t, None, v
+
+
+class TextReader(Reader):
+    """csv / tum / euroc / kitti through pyarrow's streaming CSV reader."""
+
+    def __init__(self, path, name, fmt, kind, layout, chunk, on_invalid):
+        self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        self.drop = on_invalid == "drop"
+        self.skipped = 0
+        self.ns_time = False
+        self.matrix = False
+        self._sniff(fmt, layout)
+
+    # -- header ------------------------------------------------------------
+
+    def _sniff(self, fmt, layout):
+        name = self.name
+        head = []
+        with open(self.path, "rb") as f:
+            for raw in f:
+                head.append(raw.decode("utf-8", "replace").rstrip("\r\n"))
+                if len(head) >= 1000 or (head[-1].strip() and not head[-1].lstrip().startswith("#")):
+                    break
+        if not any(h.strip() for h in head):
+            raise F.empty(name)
+        first = head[0].lstrip()
+        if fmt == "euroc" or (fmt == "text" and first.startswith("#timestamp")) or (
+            fmt == "text" and "q_RS_w" in first
+        ):
+            return self._euroc(head)
+        # skip comments and blank lines at the top
+        i = 0
+        while i < len(head) and (not head[i].strip() or head[i].lstrip().startswith("#")):
+            i += 1
+        if i >= len(head):
+            raise F.empty(name)
+        line = head[i]
+        self.skip = i  # lines before the first data (or header) line
+        delim = "," if "," in line else ("\t" if "\t" in line else " ")
+        fields = _split(line, delim)
+        numeric = all(_is_number(x) for x in fields)
+        if fmt == "text":
+            if numeric and delim != "," and len(fields) == 8 and self.kind == "quat":
+                fmt = "tum"
+            elif numeric and delim != "," and len(fields) == 12 and self.kind == "quat":
+                fmt = "kitti"
+            else:
+                fmt = "csv"
+        self.format = fmt
+        self.delim = delim
+        if fmt in ("tum", "kitti"):
+            if self.kind != "quat":
+                raise DataError(f"{name}: a {fmt} file holds poses, not vectors")
+            want = 8 if fmt == "tum" else 12
+            if len(fields) != want:
+                raise DataError(f"{name}:{i + 1}: expected {want} numbers, got {len(fields)} ({fmt} format)")
+            self.names = list(F.TUM_NAMES if fmt == "tum" else F.KITTI_NAMES)
+            self.columns = list(self.names)
+            if fmt == "tum":
+                self.t, self.pos, self.q = "timestamp", ["tx", "ty", "tz"], ["qw", "qx", "qy", "qz"]
+                self.layout = "xyzw"
+            else:
+                self.t, self.pos, self.q = None, ["t0", "t1", "t2"], None
+                self.matrix = True
+                self.layout = "matrix 3x4 [R | t]"
+            self.header = False
+            return
+        # csv
+        if numeric:
+            self.header = False
+            n = len(fields)
+            self.layout = layout or "wxyz"
+            qn = ["q0", "q1", "q2", "q3"]
+            order = qn if self.layout == "wxyz" else [qn[3], qn[0], qn[1], qn[2]]
+            if self.kind == "quat":
+                shapes = {4: (None, None), 5: ("t", None), 7: (None, ["x", "y", "z"]), 8: ("t", ["x", "y", "z"])}
+                if n not in shapes:
+                    raise DataError(
+                        f"{name}:{i + 1}: expected 4 (quaternion), 5 (t, quaternion), 7 (x y z, quaternion) "
+                        f"or 8 (t x y z, quaternion) numbers without a header, got {n}"
+                    )
+                self.t, self.pos = shapes[n]
+                self.names = ([self.t] if self.t else []) + (self.pos or []) + qn
+                self.q = order
+            else:
+                if n not in (3, 4):
+                    raise DataError(f"{name}:{i + 1}: expected 3 (x y z) or 4 (t x y z) numbers, got {n}")
+                self.t = "t" if n == 4 else None
+                self.pos = None
+                self.names = ([self.t] if self.t else []) + ["x", "y", "z"]
+                self.q = ["x", "y", "z"]
+            self.columns = list(self.names)
+        else:
+            self.header = True
+            self.names = [f.strip() for f in fields]
+            if len(set(self.names)) != len(self.names):
+                raise DataError(f"{name}:{i + 1}: repeated column names in the header")
+            self.t, self.pos, self.q = _find_roles(self.names, self.kind, name, i + 1)
+            self.skip = i + 1
+            self.layout = "named columns"
+            self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
+
+    def _euroc(self, head):
+        name = self.name
+        if self.kind != "quat":
+            raise DataError(f"{name}: a euroc file holds poses, not vectors")
+        line = head[0].lstrip().lstrip("#")
+        names = [n.strip().split(" [")[0].strip() for n in line.split(",")]
+        missing = [c for c in [F.EUROC_TIME] + F.EUROC_POS + F.EUROC_QUAT if c not in names]
+        if missing:
+            raise DataError(f"{name}:1: missing column {', '.join(missing)} (EuRoC ground truth)")
+        self.format, self.delim, self.header, self.skip = "euroc", ",", True, 1
+        self.names = names
+        self.t, self.pos, self.q = F.EUROC_TIME, list(F.EUROC_POS), list(F.EUROC_QUAT)
+        self.ns_time = True
+        self.layout = "wxyz"
+        self.columns = [self.t] + self.pos + self.q
+
+    @property
+    def has_time(self):
+        return self.t is not None
+
+    @property
+    def has_pos(self):
+        return self.pos is not None
+
+    def where(self, row):
+        return f"{self.name}:{self._line_of_row(row)}"
+
+    def _data_lines(self):
+        """(line number, text) of each data line, as pyarrow counts rows."""
+        with open(self.path, "rb") as f:
+            for lineno, raw in enumerate(f, 1):
+                if lineno <= self.skip:
+                    continue
+                line = raw.decode("utf-8", "replace").rstrip("\r\n")
+                if not line:
+                    continue
+                yield lineno, line
+
+    def _line_of_row(self, row):
+        for k, (lineno, _) in enumerate(self._data_lines()):
+            if k == row:
+                return lineno
+        return "?"
+
+    # -- reading -----------------------------------------------------------
+
+    def _needed(self):
+        cols = [c for c in [self.t] + (self.pos or []) if c]
+        cols += self.names if self.matrix else self.q
+        return list(dict.fromkeys(cols))
+
+    def _options(self, strings):
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        needed = self._needed()
+        types = {c: (pa.string() if strings else pa.float64()) for c in needed}
+        if self.ns_time and not strings:
+            types[self.t] = pa.int64()
+        width = max(16, 12 * len(self.names))
+        ro = pcsv.ReadOptions(
+            skip_rows=self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26))
+        )
+
+        def skip(row):
+            self.skipped += 1
+            return "skip"
+
+        po = pcsv.ParseOptions(delimiter=self.delim, invalid_row_handler=skip if self.drop else None)
+        co = pcsv.ConvertOptions(column_types=types, include_columns=needed, strings_can_be_null=True)
+        return ro, po, co
+
+    def __iter__(self):
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        ro, po, co = self._options(strings=self.drop)
+        row0 = 0
+        try:
+            reader = pcsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co)
+            for batch in reader:
+                if batch.num_rows == 0:
+                    continue
+                ch = self._chunk(batch, row0)
+                row0 += batch.num_rows
+                yield ch
+        except pa.ArrowInvalid as exc:
+            if self.drop:
+                raise DataError(f"{self.name}: {str(exc).splitlines()[0]}") from None
+            self._scan_for_error(exc)
+        if row0 == 0 and not self.skipped:
+            raise F.empty(self.name)
+
+    def _col(self, batch, c):
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        col = batch.column(batch.schema.names.index(c))
+        if col.type != pa.string():
+            if self.ns_time and c == self.t:
+                return _ns_to_s(col.to_numpy(zero_copy_only=False))
+            return col.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+        if self.ns_time and c == self.t:
+            vals = [_int_or_none(s) for s in col.to_pylist()]
+            return np.array([np.nan if v is None else _ns_to_s(v) for v in vals], dtype=np.float64)
+        try:
+            return pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
+        except pa.ArrowInvalid:
+            return np.array([_float_or_nan(s) for s in col.to_pylist()], dtype=np.float64)
+
+    def _chunk(self, batch, row0):
+        get = lambda c: self._col(batch, c)  # noqa: E731
+        t = get(self.t) if self.t else None
+        if self.matrix:
+            m = np.column_stack([get(c) for c in self.names]).reshape(-1, 3, 4)
+            pos = np.ascontiguousarray(m[:, :, 3])
+            q = _from_matrix(np.ascontiguousarray(m[:, :, :3]), self, row0, bad_ok=self.drop)
+            return Chunk(q, t, pos, row0)
+        pos = np.column_stack([get(c) for c in self.pos]) if self.pos else None
+        data = np.column_stack([get(c) for c in self.q])
+        return Chunk(data, t, pos, row0)
+
+    def _scan_for_error(self, exc):
+        """pyarrow refused the file: find and name the first bad line."""
+        idx = {c: k for k, c in enumerate(self.names)}
+        needed = self._needed()
+        n = len(self.names)
+        what = "numbers" if not self.header else "fields"
+        for lineno, line in self._data_lines():
+            fields = _split(line, self.delim) if self.delim != " " else line.split(" ")
+            if len(fields) != n:
+                raise DataError(f"{self.name}:{lineno}: expected {n} {what}, got {len(fields)}")
+            for c in needed:
+                s = fields[idx[c]].strip()
+                if s == "":
+                    raise DataError(f"{self.name}:{lineno}: empty field in column {c}")
+                ok = _int_or_none(s) is not None if (self.ns_time and c == self.t) else _is_number(s)
+                if not ok:
+                    kind = "an integer" if self.ns_time and c == self.t else "a number"
+                    raise DataError(f"{self.name}:{lineno}: not {kind}: {s!r} in column {c}")
+        raise DataError(f"{self.name}: {str(exc).splitlines()[0]}")
+
+
+def _ns_to_s(ns):
+    """Integer nanoseconds → float seconds, rounded once (full float64 precision)."""
+    if isinstance(ns, (int, np.integer)):
+        return (ns // 1_000_000_000) + (ns % 1_000_000_000) * 1e-9
+    ns = np.asarray(ns)
+    if ns.dtype.kind == "f":  # nulls came through as float
+        return ns * 1e-9
+    return (ns // 1_000_000_000).astype(np.float64) + (ns % 1_000_000_000) * 1e-9
+
+
+def _int_or_none(s):
+    try:
+        return int(s)
+    except (TypeError, ValueError):
+        return None
+
+
+def _float_or_nan(s):
+    try:
+        return float(s)
+    except (TypeError, ValueError):
+        return np.nan
+
+
+# --------------------------------------------------------------------------
+# parquet
+
+
+class ParquetReader(Reader):
+    """Parquet with columns named as for csv, read in record batches."""
+
+    format = "parquet"
+
+    def __init__(self, path, name, kind, chunk):
+        import pyarrow.parquet as pq
+
+        self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        try:
+            self.file = pq.ParquetFile(path)
+        except Exception as exc:  # pyarrow raises several types for a bad file
+            if os.path.getsize(path) == 0:
+                raise F.empty(name) from None
+            raise DataError(f"{name}: not a readable parquet file ({str(exc).splitlines()[0]})") from None
+        names = self.file.schema_arrow.names
+        self.t, self.pos, self.q = _find_roles(names, kind, name, "header")
+        self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
+        self.layout = "named columns"
+        self.rows = self.file.metadata.num_rows
+        if self.rows == 0:
+            raise F.empty(name)
+
+    has_time = property(lambda self: self.t is not None)
+    has_pos = property(lambda self: self.pos is not None)
+
+    def __iter__(self):
+        row0 = 0
+        for batch in self.file.iter_batches(batch_size=self.chunk, columns=self.columns):
+            get = lambda c: batch.column(batch.schema.names.index(c)).to_numpy(zero_copy_only=False)  # noqa: E731
+            try:
+                t = get(self.t).astype(np.float64) if self.t else None
+                pos = np.column_stack([get(c) for c in self.pos]).astype(np.float64) if self.pos else None
+                data = np.column_stack([get(c) for c in self.q]).astype(np.float64)
+            except (TypeError, ValueError) as exc:
+                raise DataError(f"{self.name}: a column is not numeric ({exc})") from None
+            yield Chunk(data, t, pos, row0)
+            row0 += batch.num_rows
+
+
+# --------------------------------------------------------------------------
+# bvh
+
+
+class BvhReader(Reader):
+    """One joint of a BVH motion-capture file as a quaternion stream.
+
+    The joint's rotation channels, in the order the file lists them, form an
+    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``)
+    in degrees; position channels (the root's) become the position columns;
+    frame i is at time i × Frame Time.
+    """
+
+    format = "bvh"
+    has_time = True
+
+    def __init__(self, path, name, joint, chunk, on_invalid):
+        self.path, self.name, self.chunk = path, name, chunk
+        self.drop = on_invalid == "drop"
+        self.skipped = 0
+        self._parse_header(joint)
+
+    def _parse_header(self, want):
+        name = self.name
+        joints = []  # (name, first channel index, [channel names], line)
+        nch = 0
+        self.motion_line = None
+        with open(self.path, "r", encoding="utf-8", errors="replace") as f:
+            lines = iter(enumerate(f, 1))
+            current = None
+            for lineno, line in lines:
+                tok = line.split()
+                if not tok:
+                    continue
+                key = tok[0].upper()
+                if key in ("ROOT", "JOINT"):
+                    current = " ".join(tok[1:])
+                elif key == "CHANNELS":
+                    try:
+                        k = int(tok[1])
+                    except (IndexError, ValueError):
+                        raise DataError(f"{name}:{lineno}: bad CHANNELS line") from None
+                    chans = tok[2:]
+                    if len(chans) != k:
+                        raise DataError(f"{name}:{lineno}: CHANNELS says {k} channels, lists {len(chans)}")
+                    joints.append((current, nch, chans, lineno))
+                    nch += k
+                elif key == "MOTION":
+                    self.motion_line = lineno
+                    break
+            if self.motion_line is None:
+                if not joints:
+                    if os.path.getsize(self.path) == 0:
+                        raise F.empty(name)
+                    raise DataError(f"{name}:1: not a BVH file (no HIERARCHY/MOTION sections)")
+                raise DataError(f"{name}: no MOTION section")
+            frames = frame_time = None
+            for lineno, line in lines:
+                low = line.strip().lower()
+                if low.startswith("frames:"):
+                    frames = _parse_num(line.split(":", 1)[1], int, name, lineno, "frame count")
+                elif low.startswith("frame time:"):
+                    frame_time = _parse_num(line.split(":", 1)[1], float, name, lineno, "frame time")
+                    self.data_line = lineno + 1
+                    break
+                elif low:
+                    raise DataError(f"{name}:{lineno}: expected 'Frames:' and 'Frame Time:' lines")
+        if frame_time is None or not frame_time > 0:
+            raise DataError(f"{name}: missing or non-positive 'Frame Time:'")
+        self.frames, self.frame_time, self.nch = frames, frame_time, nch
+        self.joints = [j[0] for j in joints]
+        if want is None:
+            sel = joints[0]
+        else:
+            sel = next((j for j in joints if j[0] == want), None)
+            if sel is None:
+                raise UsageError(f"{name}: no joint {want!r} (joints: {', '.join(self.joints)})")
+        self.joint, first, chans, lineno = sel
+        rot = [(k, c[0].upper()) for k, c in enumerate(chans) if c.lower().endswith("rotation")]
+        pos = {c[0].upper(): k for k, c in enumerate(chans) if c.lower().endswith("position")}
+        if len(rot) != 3:
+            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 3")
+        self.seq = "".join(a for _, a in rot)
+        self.rot_idx = [first + k for k, _ in rot]
+        self.pos_idx = [first + pos[a] for a in "XYZ"] if all(a in pos for a in "XYZ") else None
+        self.columns = [f"{self.joint}.{chans[k]}" for k in range(len(chans))]
+        self.layout = f"euler {self.seq} (intrinsic, degrees)"
+        self.has_pos = self.pos_idx is not None
+        self.rows = frames
+
+    def where(self, row):
+        return f"{self.name}:{self.data_line + row}"
+
+    def _motion(self):
+        """All frames as an (n, channels) array; frame i sits at line data_line + i."""
+        name, n = self.name, self.nch
+        rows, frame_idx = [], []
+        with open(self.path, "r", encoding="utf-8", errors="replace") as f:
+            for lineno, line in enumerate(f, 1):
+                if lineno < self.data_line:
+                    continue
+                tok = line.split()
+                if not tok:
+                    continue
+                k = lineno - self.data_line
+                if len(tok) != n:
+                    if self.drop:
+                        self.skipped += 1
+                        continue
+                    raise DataError(f"{name}:{lineno}: expected {n} numbers, got {len(tok)}")
+                try:
+                    rows.append(np.array(tok, dtype=np.float64))
+                except ValueError:
+                    if self.drop:
+                        self.skipped += 1
+                        continue
+                    bad = next(s for s in tok if not _is_number(s))
+                    raise DataError(f"{name}:{lineno}: not a number: {bad!r}") from None
+                frame_idx.append(k)
+        if not rows:
+            raise F.empty(name)
+        return np.array(rows), np.array(frame_idx)
+
+    def __iter__(self):
+        import quatarray as qa
+
+        motion, idx = self._motion()
+        self.rows = len(motion)
+        t_all = idx * self.frame_time
+        for a in range(0, len(motion), self.chunk):
+            m = motion[a : a + self.chunk]
+            ang = m[:, self.rot_idx]
+            fin = np.isfinite(ang).all(axis=1)
+            q = np.full((len(m), 4), np.nan)
+            q[fin] = qa.from_euler(self.seq, ang[fin], degrees=True)
+            pos = m[:, self.pos_idx] if self.pos_idx else None
+            yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))
+
+
+def _parse_num(s, typ, name, lineno, what):
+    try:
+        return typ(s.strip())
+    except ValueError:
+        raise DataError(f"{name}:{lineno}: bad {what} {s.strip()!r}") from None
+
+
+# --------------------------------------------------------------------------
+# times for `resample --times`
+
+
+def read_times(path, fmt="auto", name=None):
+    """A 1-D float64 array of times from a file.
+
+    ``.npy``: a 1-D array (or (N, 1)). Text: one number a line, or any stream
+    file with a time column (csv/tum/euroc/parquet/bvh), whose times are used.
+    """
+    path = os.fspath(path)
+    name = name or path
+    if not os.path.exists(path):
+        raise UsageError(f"{name}: no such file")
+    if (fmt == "auto" and F.by_extension(path) == "npy") or fmt == "npy":
+        try:
+            a = np.load(path, mmap_mode="r")
+        except (ValueError, OSError, EOFError) as exc:
+            raise DataError(f"{name}: not a valid .npy file ({exc})") from None
+        if a.ndim == 2 and a.shape[1] == 1:
+            a = a[:, 0]
+        if a.ndim != 1:
+            raise DataError(f"{name}: expected a 1-D array of times, got shape {a.shape}")
+        return a
+    if F.by_extension(path) is None and fmt in ("auto", "csv"):
+        with open(path, "rb") as f:
+            first = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith(b"#")), b"")
+        fields = first.replace(b",", b" ").split()
+        if len(fields) == 1:
+            out = []
+            with open(path, "r", encoding="utf-8", errors="replace") as f:
+                for lineno, line in enumerate(f, 1):
+                    s = line.strip()
+                    if not s or s.startswith("#") or (not out and not _is_number(s)):
+                        continue
+                    try:
+                        out.append(float(s))
+                    except ValueError:
+                        raise DataError(f"{name}:{lineno}: not a number: {s!r}") from None
+            if not out:
+                raise F.empty(name)
+            return np.array(out)
+    reader = open_stream(path, fmt, name=name)
+    if not reader.has_time:
+        raise DataError(f"{name}: has no time column")
+    return np.concatenate([ch.t for ch in reader])

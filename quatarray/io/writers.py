@@ -1,0 +1,250 @@
+"""Stream writers: npy (appended chunk by chunk), csv, parquet, tum.
+
+Every writer writes to a temporary file beside OUT and renames it over OUT
+in :meth:`Writer.close`; :meth:`Writer.abort` (or leaving a ``with`` block by
+an exception) removes the temporary file, so a failed or interrupted run
+never leaves a partial OUT.
+"""
+
+import os
+import tempfile
+
+import numpy as np
+
+from . import formats as F
+from .errors import UsageError
+
+
+def check_output(out, inputs=(), force=False):
+    """Refuse OUT when it is one of the inputs, or exists without ``force``."""
+    out = os.fspath(out)
+    for src in inputs:
+        src = os.fspath(src)
+        same = os.path.exists(out) and os.path.exists(src) and os.path.samefile(out, src)
+        if same or os.path.abspath(out) == os.path.abspath(src):
+            raise UsageError(f"{out}: the output is the input file; write to another file")
+    if os.path.isdir(out):
+        raise UsageError(f"{out}: is a directory")
+    if os.path.exists(out) and not force:
+        raise UsageError(f"{out}: exists; use --force to overwrite it")
+    parent = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(parent):
+        raise UsageError(f"{out}: the folder {parent} does not exist")
+
+
+def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
+    """A writer for OUT, by its extension unless ``fmt`` is given.
+
+    Parameters
+    ----------
+    path : str
+    fields : list of str
+        Column names of the verb's array, flattened (csv, parquet).
+    core : tuple, optional
+        Trailing shape of the array in an ``.npy`` output (default ``(len(fields),)``).
+    time, pos : bool
+        Whether chunks carry a time column and x, y, z columns (csv, parquet, tum).
+    """
+    fmt = fmt or F.output_format(path)
+    core = tuple(core) if core is not None else (len(fields),)
+    if fmt == "npy":
+        return NpyWriter(path, core)
+    cols = (["t"] if time else []) + (["x", "y", "z"] if pos else []) + list(fields)
+    if fmt == "csv":
+        return CsvWriter(path, cols)
+    if fmt == "parquet":
+        return ParquetWriter(path, cols)
+    if fmt == "tum":
+        if not (time and pos and list(fields) == ["qw", "qx", "qy", "qz"]):
+            raise UsageError(f"{path}: a TUM (.txt) output needs times, positions and quaternions")
+        return TumWriter(path, cols)
+    raise UsageError(f"{path}: cannot write format {fmt!r}")
+
+
+class Writer:
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        folder, base = os.path.split(os.path.abspath(self.path))
+        fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
+        os.close(fd)
+        self.rows = 0
+        self.closed = False
+
+    def write(self, data, t=None, pos=None):
+        raise NotImplementedError
+
+    def _finish(self):
+        pass
+
+    def close(self):
+        """Finish the file and move it to OUT."""
+        if self.closed:
+            return
+        self._finish()
+        os.replace(self.tmp, self.path)
+        self.closed = True
+
+    def abort(self):
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._release()
+        finally:
+            if os.path.exists(self.tmp):
+                os.unlink(self.tmp)
+
+    def _release(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        if typ is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+
+class NpyWriter(Writer):
+    """``.npy`` written incrementally: a header with room for any row count, then the
+    chunks appended; the header is rewritten with the final count at the end."""
+
+    def __init__(self, path, core):
+        super().__init__(path)
+        self.core = core
+        self.dtype = None
+        self.f = open(self.tmp, "wb")
+
+    def _header(self, rows):
+        shape = (rows,) + self.core
+        d = {"descr": np.lib.format.dtype_to_descr(self.dtype), "fortran_order": False, "shape": shape}
+        text = repr(d).encode("latin1")
+        size = 10 + len(text) + 1
+        total = -(-(10 + 100 + 1) // 64) * 64  # fixed: room for a 20-digit row count
+        if size > total:  # pragma: no cover - cores are tiny
+            total = -(-size // 64) * 64
+        pad = total - size
+        return b"\x93NUMPY\x01\x00" + np.uint16(total - 10).tobytes() + text + b" " * pad + b"\n"
+
+    def write(self, data, t=None, pos=None):
+        data = np.ascontiguousarray(data)
+        if self.dtype is None:
+            self.dtype = data.dtype
+            self.f.write(self._header(0))
+        elif data.dtype != self.dtype:
+            data = data.astype(self.dtype)
+        self.f.write(memoryview(data).cast("B"))
+        self.rows += data.shape[0]
+
+    def _finish(self):
+        if self.dtype is None:
+            self.dtype = np.dtype(np.float64)
+            self.f.write(self._header(0))
+        self.f.seek(0)
+        self.f.write(self._header(self.rows))
+        self.f.close()
+
+    def _release(self):
+        self.f.close()
+
+
+def _table(cols, data, t, pos):
+    import pyarrow as pa
+
+    n = data.shape[0]
+    flat = np.asarray(data).reshape(n, -1)
+    arrays = []
+    if t is not None:
+        arrays.append(np.ascontiguousarray(t))
+    if pos is not None:
+        arrays += [np.ascontiguousarray(pos[:, k]) for k in range(3)]
+    arrays += [np.ascontiguousarray(flat[:, k]) for k in range(flat.shape[1])]
+    if len(arrays) != len(cols):  # pragma: no cover - a verb bug, not a user error
+        raise RuntimeError(f"writer expected columns {cols}, got {len(arrays)} arrays")
+    return pa.table([pa.array(a) for a in arrays], names=cols)
+
+
+class CsvWriter(Writer):
+    """csv with a header of the exact column names; numbers at full precision
+    (shortest repr that reads back to the same float)."""
+
+    delimiter = ","
+    include_header = True
+    preamble = b""
+
+    def __init__(self, path, cols):
+        super().__init__(path)
+        self.cols = cols
+        self.w = None
+        self.sink = open(self.tmp, "wb")
+        self.sink.write(self.preamble)
+
+    def write(self, data, t=None, pos=None):
+        import pyarrow.csv as pcsv
+
+        table = _table(self.cols, data, t, pos)
+        if self.w is None:
+            opts = pcsv.WriteOptions(
+                include_header=self.include_header, delimiter=self.delimiter, quoting_style="none",
+                quoting_header="none", batch_size=1 << 14,
+            )
+            self.w = pcsv.CSVWriter(self.sink, table.schema, write_options=opts)
+        self.w.write_table(table)
+        self.rows += table.num_rows
+
+    def _finish(self):
+        if self.w is None and self.include_header:
+            self.sink.write((self.delimiter.join(self.cols) + "\n").encode())
+        if self.w is not None:
+            self.w.close()
+        self.sink.close()
+
+    def _release(self):
+        try:
+            if self.w is not None:
+                self.w.close()
+        finally:
+            self.sink.close()
+
+
+class TumWriter(CsvWriter):
+    """TUM trajectory: ``timestamp tx ty tz qx qy qz qw`` (scalar last)."""
+
+    delimiter = " "
+    include_header = False
+    preamble = b"# timestamp tx ty tz qx qy qz qw\n"
+
+    def write(self, data, t=None, pos=None):
+        super().write(np.asarray(data)[:, [1, 2, 3, 0]], t, pos)
+
+
+class ParquetWriter(Writer):
+    def __init__(self, path, cols):
+        super().__init__(path)
+        self.cols = cols
+        self.w = None
+
+    def write(self, data, t=None, pos=None):
+        import pyarrow.parquet as pq
+
+        table = _table(self.cols, data, t, pos)
+        if self.w is None:
+            self.w = pq.ParquetWriter(self.tmp, table.schema)
+        self.w.write_table(table)
+        self.rows += table.num_rows
+
+    def _finish(self):
+        if self.w is None:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            pq.write_table(pa.table({c: pa.array([], pa.float64()) for c in self.cols}), self.tmp)
+        else:
+            self.w.close()
+
+    def _release(self):
+        if self.w is not None:
+            self.w.close()
