@@ -115,7 +115,10 @@ def _mat_inverse(m):
         (r0[1] * k, r1[1] * k, r2[1] * k),
         (r0[2] * k, r1[2] * k, r2[2] * k),
     )
-    ratio = abs(det) / (E.vnorm(c0) * E.vnorm(c1) * E.vnorm(c2))
+    den = E.vnorm(c0) * E.vnorm(c1) * E.vnorm(c2)
+    ratio = abs(det) / den
+    if den == like(den, 0.0):  # a zero column: singular (not 0/0 = nan)
+        ratio = like(den, 0.0)
     return inv, ratio
 
 
