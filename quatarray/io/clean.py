@@ -42,11 +42,21 @@ class Cleaner:
 
     def __call__(self, ch):
         """Return the chunk with bad rows dropped (or raise) and quaternions normalised."""
+        ch, good = self.check(ch)
+        if not good.all():
+            keep = np.flatnonzero(good)
+            self.dropped += good.size - keep.size
+            ch = ch.take(keep)
+        return ch
+
+    def check(self, ch):
+        """``(chunk with quaternions normalised, mask of good rows)``; raises on a bad
+        row unless dropping. Rows are not removed (paired verbs drop row pairs)."""
         import quatarray as qa
 
         n = len(ch)
         if n == 0:
-            return ch
+            return ch, np.ones(0, bool)
         data = ch.data
         if self.reader.kind == "quat":
             norms = qa.norm(data)
@@ -63,21 +73,15 @@ class Cleaner:
             self._fail(ch.row0 + i, self._why(ch, i, norms))
         if self.ordered and ch.t is not None:
             good = self._order(ch, good)
-        if not good.all():
-            keep = np.flatnonzero(good)
-            self.dropped += n - keep.size
-            ch = ch.take(keep)
-            if norms is not None:
-                norms = norms[keep]
-        if self.normalize and len(ch):
-            dev = np.abs(norms - 1.0)
-            big = dev > _TOL[ch.data.dtype.char]
-            count = int(np.count_nonzero(big))
+        if self.normalize:
+            dev = np.abs(norms[good] - 1.0)
+            count = int(np.count_nonzero(dev > _TOL[data.dtype.char])) if dev.size else 0
             if count:
                 self.normalised += count
                 self.max_dev = max(self.max_dev, float(dev.max()))
-                ch = ch.replace(data=qa.normalize(ch.data))
-        return ch
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    ch = ch.replace(data=qa.normalize(data))
+        return ch, good
 
     def _order(self, ch, good):
         t = ch.t

@@ -1,0 +1,685 @@
+"""The ``quatarray`` command line: batch processing of large rotation streams.
+
+Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
+stays bounded whatever the file size; reading and writing live in
+:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage.
+Errors are one line on stderr naming the file, the line or row and what is
+wrong; a user error never prints a traceback.
+"""
+
+import argparse
+import importlib
+import os
+import sys
+import warnings
+
+import numpy as np
+
+from .io import (
+    DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
+    read_times, rechunk,
+)
+from .io.formats import FORMATS
+
+METHODS = ("bezier", "slerp", "nlerp", "squad")
+TARGETS = "quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic)"
+QUAT_FIELDS = ["qw", "qx", "qy", "qz"]
+
+
+# --------------------------------------------------------------------------
+# shared pieces
+
+
+def _open(args, path, kind="quat"):
+    return open_stream(
+        path, args.format, kind=kind, layout=args.layout, joint=args.joint, chunk=args.chunk,
+        on_invalid=args.on_invalid,
+    )
+
+
+def _progress(args, total, desc):
+    from tqdm import tqdm
+
+    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    return tqdm(total=total, unit="row", unit_scale=True, desc=desc, file=sys.stderr, disable=not show,
+                leave=False, dynamic_ncols=True)
+
+
+def _no_rows(name):
+    return DataError(f"{name}: no valid rows left")
+
+
+def _lib_error(name, exc):
+    """A library ValueError on file data → a one-line DataError."""
+    return DataError(f"{name}: {str(exc).splitlines()[0]}")
+
+
+# --------------------------------------------------------------------------
+# convert
+
+
+def _target(to, degrees):
+    """(fields, npy core shape, function of (n, 4) unit quaternions) for ``--to``."""
+    import quatarray as qa
+
+    angles = to in ("rotvec", "axis-angle") or to.startswith("euler:")
+    if degrees and not angles:
+        raise UsageError(f"--degrees applies to rotvec, axis-angle and euler outputs, not {to}")
+    if to == "quat":
+        return QUAT_FIELDS, (4,), lambda q: q
+    if to == "xyzw":
+        return ["qx", "qy", "qz", "qw"], (4,), qa.as_xyzw
+    if to == "matrix":
+        return [f"r{i}{j}" for i in range(3) for j in range(3)], (3, 3), qa.as_matrix
+    if to == "rotvec":
+        return ["rx", "ry", "rz"], (3,), lambda q: qa.as_rotvec(q, degrees=degrees)
+    if to == "axis-angle":
+        def axis_angle(q):
+            axis, ang = qa.as_axis_angle(q, degrees=degrees)
+            return np.column_stack([axis, ang])
+
+        return ["ax", "ay", "az", "angle"], (4,), axis_angle
+    if to.startswith("euler:"):
+        seq = to[6:]
+        if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
+                and seq[0] != seq[1] and seq[1] != seq[2]):
+            raise UsageError(
+                f"--to {to}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
+                "no axis twice in a row, e.g. euler:ZXY"
+            )
+        return [f"e{k + 1}_{a}" for k, a in enumerate(seq)], (3,), lambda q: qa.as_euler(q, seq, degrees=degrees)
+    raise UsageError(f"--to {to}: expected one of {TARGETS}")
+
+
+def cmd_convert(args):
+    if args.scheduler:
+        return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
+                          layout=args.layout, chunk=args.chunk, scheduler=args.scheduler)
+    fields, core, fn = _target(args.to, args.degrees)
+    reader = _open(args, args.IN)
+    check_output(args.OUT, [args.IN], args.force)
+    clean = Cleaner(reader, args.on_invalid)
+    lock = 0
+    with open_writer(args.OUT, fields, core, time=reader.has_time, pos=reader.has_pos) as w, \
+            _progress(args, reader.rows, "convert") as bar:
+        for ch in reader:
+            n = len(ch)
+            ch = clean(ch)
+            if len(ch):
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    out = fn(ch.data)
+                lock += sum(1 for c in caught if "gimbal" in str(c.message).lower())
+                w.write(out, ch.t, ch.pos)
+            bar.update(n)
+        if w.rows == 0:
+            raise _no_rows(args.IN)
+    clean.report(sys.stderr)
+    if lock:
+        print(f"{args.IN}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there (as scipy does)",
+              file=sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------
+# resample
+
+
+class _RateTimes:
+    """New times t0 + k / rate, handed out interval by interval."""
+
+    def __init__(self, rate):
+        if not (rate > 0 and np.isfinite(rate)):
+            raise UsageError(f"--rate must be a positive number, got {rate}")
+        self.rate = float(rate)
+        self.t0 = None
+        self.k = 0
+
+    def upto(self, b, closed):
+        t0, r = self.t0, self.rate
+        kb = max(self.k, int(np.ceil((b - t0) * r)) - 1)
+        inside = (lambda k: t0 + k / r <= b) if closed else (lambda k: t0 + k / r < b)
+        while inside(kb):
+            kb += 1
+        while kb > self.k and not inside(kb - 1):
+            kb -= 1
+        ks = np.arange(self.k, kb, dtype=np.float64)
+        self.k = kb
+        return t0 + ks / r
+
+    def finish(self, last):
+        pass
+
+
+class _FileTimes:
+    """New times from a file: non-decreasing, inside the key times."""
+
+    def __init__(self, path, fmt):
+        self.name = path
+        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto"), dtype=np.float64)
+        if self.times.size == 0:
+            raise DataError(f"{path}: no times")
+        if not np.isfinite(self.times).all():
+            raise DataError(f"{path}: row {int(np.argmin(np.isfinite(self.times)))}: time is not finite")
+        d = np.diff(self.times)
+        if (d < 0).any():
+            i = int(np.argmax(d < 0)) + 1
+            raise DataError(f"{path}: row {i}: times must not decrease ({self.times[i]!r} after {self.times[i - 1]!r})")
+        self.p = 0
+        self.t0 = None
+
+    def upto(self, b, closed):
+        if self.p == 0 and self.times[0] < self.t0:
+            raise DataError(f"{self.name}: time {self.times[0]!r} is before the first key time {self.t0!r}")
+        j = int(np.searchsorted(self.times, b, side="right" if closed else "left"))
+        out = self.times[self.p:j]
+        self.p = max(self.p, j)
+        return out
+
+    def finish(self, last):
+        if self.p < self.times.size:
+            raise DataError(
+                f"{self.name}: row {self.p}: time {self.times[self.p]!r} is after the last key time {last!r}"
+            )
+
+
+def cmd_resample(args):
+    if args.scheduler:
+        return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
+                          method=args.method, chunk=args.chunk, scheduler=args.scheduler)
+    import quatarray as qa
+
+    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
+    reader = _open(args, args.IN)
+    if not reader.has_time and args.in_rate is None:
+        raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ")
+    check_output(args.OUT, [args.IN] + ([args.times] if args.times else []), args.force)
+    if args.in_rate is not None and not args.in_rate > 0:
+        raise UsageError(f"--in-rate must be positive, got {args.in_rate}")
+    clean = Cleaner(reader, args.on_invalid, ordered=True)
+
+    def source():
+        for ch in reader:
+            if not reader.has_time:
+                ch = ch.replace(t=(ch.row0 + np.arange(len(ch))) / args.in_rate)
+            yield ch
+
+    def emit(w, keys, lo, hi, closed):
+        nt = newt.upto(keys.t[hi], closed)
+        if nt.size == 0:
+            return
+        try:
+            q = qa.spline(keys.t, keys.data, nt, method=args.method)
+        except ValueError as exc:
+            raise _lib_error(args.IN, exc) from None
+        pos = None
+        if keys.pos is not None:
+            pos = np.column_stack([np.interp(nt, keys.t, keys.pos[:, k]) for k in range(3)])
+        w.write(q, nt if reader.has_time or args.in_rate else None, pos)
+
+    with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
+            _progress(args, reader.rows, "resample") as bar:
+        buf, lo, last_q = None, 0, None
+        step = max(args.chunk, 8)
+        for ch in source():
+            n = len(ch)
+            ch = clean(ch)
+            bar.update(n)
+            if not len(ch):
+                continue
+            q = ch.data
+            # sign continuity across chunks: unflip continuing from the last key
+            q = qa.unflip(q if last_q is None else np.concatenate([last_q[None], q]))
+            q = q if last_q is None else q[1:]
+            last_q = q[-1]
+            ch = ch.replace(data=q)
+            if buf is None:
+                newt.t0 = float(ch.t[0])
+            buf = ch if buf is None else concat([buf, ch])
+            hi = len(buf) - 3  # keep two keys of halo after the interval's end key
+            if hi - lo >= step:
+                emit(w, buf, lo, hi, closed=False)
+                buf = buf.slice(hi - 2, len(buf))  # two keys of halo before the next interval
+                lo = 2
+        if buf is None:
+            raise _no_rows(args.IN)
+        if len(buf) < 2:
+            raise DataError(f"{args.IN}: resampling needs at least 2 valid rows, got {len(buf)}")
+        emit(w, buf, lo, len(buf) - 1, closed=True)
+        newt.finish(float(buf.t[-1]))
+    clean.report(sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------
+# unflip
+
+
+def cmd_unflip(args):
+    import quatarray as qa
+
+    reader = _open(args, args.IN)
+    check_output(args.OUT, [args.IN], args.force)
+    clean = Cleaner(reader, args.on_invalid)
+    flips = 0
+    with open_writer(args.OUT, QUAT_FIELDS, time=reader.has_time, pos=reader.has_pos) as w, \
+            _progress(args, reader.rows, "unflip") as bar:
+        last = None
+        for ch in reader:
+            n = len(ch)
+            ch = clean(ch)
+            if len(ch):
+                src = ch.data if last is None else np.concatenate([last[None], ch.data])
+                q = qa.unflip(src)
+                flips += int(np.count_nonzero(np.signbit(q[:, 0]) != np.signbit(src[:, 0])))
+                q = q if last is None else q[1:]
+                last = q[-1]
+                w.write(q, ch.t, ch.pos)
+            bar.update(n)
+        if w.rows == 0:
+            raise _no_rows(args.IN)
+    clean.report(sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------
+# paired verbs: rotate, compose
+
+
+def _paired(ra, rb, chunk):
+    """Chunks of two streams in step; a one-row stream is broadcast against the other."""
+    ia, ib = iter(rechunk(ra, chunk)), iter(rechunk(rb, chunk))
+    a0, a1 = next(ia, None), None
+    b0, b1 = next(ib, None), None
+    if a0 is not None and len(a0) == 1:
+        a1 = next(ia, None)
+    if b0 is not None and len(b0) == 1:
+        b1 = next(ib, None)
+    if a0 is None or b0 is None:
+        return
+    a_one = len(a0) == 1 and a1 is None
+    b_one = len(b0) == 1 and b1 is None
+
+    def rest(first, second, it):
+        yield first
+        if second is not None:
+            yield second
+        yield from it
+
+    if a_one and not b_one:
+        for b in rest(b0, b1, ib):
+            yield a0, b, len(b)
+        return
+    if b_one and not a_one:
+        for a in rest(a0, a1, ia):
+            yield a, b0, len(a)
+        return
+    ga, gb = rest(a0, a1, ia), rest(b0, b1, ib)
+    na = nb = 0
+    while True:
+        a, b = next(ga, None), next(gb, None)
+        if a is None or b is None:
+            if a is not None or b is not None:
+                na += len(a) if a is not None else 0
+                nb += len(b) if b is not None else 0
+                na += sum(len(x) for x in ga)
+                nb += sum(len(x) for x in gb)
+                raise DataError(f"{ra.name} has {na} rows but {rb.name} has {nb}; they must match (or one has 1 row)")
+            return
+        if len(a) != len(b):
+            na, nb = na + len(a), nb + len(b)
+            na += sum(len(x) for x in ga)
+            nb += sum(len(x) for x in gb)
+            raise DataError(f"{ra.name} has {na} rows but {rb.name} has {nb}; they must match (or one has 1 row)")
+        na += len(a)
+        nb += len(b)
+        yield a, b, len(a)
+
+
+def _clean_pair(ca, cb, a, b):
+    """Check both chunks; in drop mode a row pair goes when either row is bad."""
+    a, ga = ca.check(a)
+    b, gb = cb.check(b)
+    if len(a) == 1 and len(b) > 1:
+        ga = np.repeat(ga, len(b))
+    if len(b) == 1 and len(a) > 1:
+        gb = np.repeat(gb, len(a))
+    good = ga & gb
+    if good.all():
+        return a, b
+    keep = np.flatnonzero(good)
+    ca.dropped += good.size - keep.size
+    a = a if len(a) == 1 else a.take(keep)
+    b = b if len(b) == 1 else b.take(keep)
+    return a, b
+
+
+def _pair_rows(a, b):
+    return max(len(a), len(b)) if min(len(a), len(b)) else 0
+
+
+def cmd_rotate(args):
+    import quatarray as qa
+
+    rq = _open(args, args.QUATS)
+    rv = _open(args, args.VECTORS, kind="vector")
+    check_output(args.OUT, [args.QUATS, args.VECTORS], args.force)
+    cq, cv = Cleaner(rq, args.on_invalid), Cleaner(rv, args.on_invalid)
+    tsrc = rq if rq.has_time else (rv if rv.has_time else None)
+    total = rq.rows if rq.rows not in (None, 1) else rv.rows
+    with open_writer(args.OUT, ["x", "y", "z"], time=tsrc is not None) as w, \
+            _progress(args, total, "rotate") as bar:
+        for a, b, n in _paired(rq, rv, args.chunk):
+            a, b = _clean_pair(cq, cv, a, b)
+            if _pair_rows(a, b):
+                out = qa.rotate(a.data, b.data)
+                t = None
+                if tsrc is not None:
+                    src = a if tsrc is rq else b
+                    t = np.broadcast_to(src.t, (out.shape[0],))
+                w.write(out, t)
+            bar.update(n)
+        if w.rows == 0:
+            raise _no_rows(args.QUATS)
+    cq.report(sys.stderr)
+    cv.report(sys.stderr)
+    return 0
+
+
+def cmd_compose(args):
+    import quatarray as qa
+
+    ra, rb = _open(args, args.A), _open(args, args.B)
+    check_output(args.OUT, [args.A, args.B], args.force)
+    ca, cb = Cleaner(ra, args.on_invalid), Cleaner(rb, args.on_invalid)
+    tsrc = ra if ra.has_time else (rb if rb.has_time else None)
+    poses = ra.has_pos or rb.has_pos
+    total = ra.rows if ra.rows not in (None, 1) else rb.rows
+    with open_writer(args.OUT, QUAT_FIELDS, time=tsrc is not None, pos=poses) as w, \
+            _progress(args, total, "compose") as bar:
+        for a, b, n in _paired(ra, rb, args.chunk):
+            a, b = _clean_pair(ca, cb, a, b)
+            m = _pair_rows(a, b)
+            if m:
+                pos = None
+                if poses:
+                    # a pose is a VQS with s = 1: (v_a, q_a) ∘ (v_b, q_b) = (v_a + q_a v_b q_a⁻¹, q_a q_b)
+                    va = a.pos if a.pos is not None else np.zeros((len(a), 3))
+                    vb = b.pos if b.pos is not None else np.zeros((len(b), 3))
+                    ab = qa.VQS(va, a.data, np.ones(len(a))) @ qa.VQS(vb, b.data, np.ones(len(b)))
+                    q, pos = np.broadcast_to(ab.q, (m, 4)), np.broadcast_to(ab.v, (m, 3))
+                else:
+                    q = qa.multiply(a.data, b.data)
+                t = None
+                if tsrc is not None:
+                    src = a if tsrc is ra else b
+                    t = np.broadcast_to(src.t, (m,))
+                w.write(q, t, pos)
+            bar.update(n)
+        if w.rows == 0:
+            raise _no_rows(args.A)
+    ca.report(sys.stderr)
+    cb.report(sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------
+# info
+
+
+def cmd_info(args):
+    import quatarray as qa
+
+    reader = _open(args, args.IN)
+    n = bad = flips = 0
+    first_bad = None
+    nmin, nmax, nsum = np.inf, -np.inf, 0.0
+    t_first = t_last = None
+    dt_min, dt_max, back = np.inf, -np.inf, 0
+    last_q = None
+    dtype = None
+    with _progress(args, reader.rows, "info") as bar:
+        for ch in reader:
+            k = len(ch)
+            if not k:
+                continue
+            dtype = dtype or ch.data.dtype
+            norms = qa.norm(ch.data) if reader.kind == "quat" else np.linalg.norm(ch.data, axis=1)
+            good = np.isfinite(norms) & (norms > 0)
+            if ch.t is not None:
+                good &= np.isfinite(ch.t)
+            if not good.all():
+                bad += int(k - np.count_nonzero(good))
+                if first_bad is None:
+                    i = int(np.argmin(good))
+                    first_bad = reader.where(ch.row0 + i)
+            g = norms[good]
+            if g.size:
+                nmin, nmax, nsum = min(nmin, g.min()), max(nmax, g.max()), nsum + float(g.sum())
+            q = ch.data[good]
+            if len(q):
+                src = q if last_q is None else np.concatenate([last_q[None], q])
+                flips += int(np.count_nonzero(qa.dot(src[1:], src[:-1]) < 0))
+                last_q = q[-1]
+            if ch.t is not None:
+                t = ch.t[good]
+                if t.size:
+                    tt = t if t_last is None else np.concatenate([[t_last], t])
+                    if tt.size > 1:
+                        d = np.diff(tt)
+                        dt_min, dt_max = min(dt_min, d.min()), max(dt_max, d.max())
+                        back += int(np.count_nonzero(d <= 0))
+                    t_first = t[0] if t_first is None else t_first
+                    t_last = t[-1]
+            n += k
+            bar.update(k)
+    ok = n - bad
+    lines = [
+        ("file", args.IN),
+        ("format", reader.format),
+        ("rows", f"{n}" + (f" ({reader.skipped} unparsable rows skipped)" if reader.skipped else "")),
+        ("columns", " ".join(str(c) for c in reader.columns)),
+        ("layout", f"{reader.layout}" + (" → read as (w, x, y, z)" if reader.kind == "quat" else "")),
+        ("dtype", str(dtype)),
+    ]
+    if getattr(reader, "joint", None):
+        others = ", ".join(reader.joints[:8]) + (f", … ({len(reader.joints)} in all)" if len(reader.joints) > 8 else "")
+        lines.append(("joint", f"{reader.joint} (joints: {others}; choose with --joint)"))
+    if reader.has_time and t_first is not None:
+        span = float(t_last - t_first)
+        rate = (ok - 1) / span if span > 0 else float("nan")
+        lines.append(("time", f"{float(t_first)!r} .. {float(t_last)!r} s (span {span:.6g} s)"))
+        lines.append(("rate", f"{rate:.6g} Hz mean; step min {dt_min:.6g} s, max {dt_max:.6g} s"
+                      + (f"; {back} steps not increasing" if back else "; strictly increasing")))
+    else:
+        lines.append(("time", "none (no time column)"))
+    lines.append(("position", "x y z" if reader.has_pos else "none"))
+    if ok:
+        lines.append(("norm", f"min {nmin:.9g}, max {nmax:.9g}, mean {nsum / ok:.9g}, "
+                      f"largest | |q| - 1 | {max(abs(nmin - 1), abs(nmax - 1)):.3g}"))
+    lines.append(("sign flips", f"{flips} (consecutive rows with q·q_prev < 0)"))
+    lines.append(("invalid rows", f"{bad}" + (f" (first at {first_bad})" if first_bad else "")))
+    width = max(len(k) for k, _ in lines)
+    for k, v in lines:
+        print(f"{k + ':':<{width + 1}} {v}")
+    return 0
+
+
+# --------------------------------------------------------------------------
+# verbs written in other modules
+
+
+def _optional(module, what):
+    try:
+        return importlib.import_module(f"quatarray.{module}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"quatarray.{module}":
+            raise UsageError(f"{what} is not available in this installation (no quatarray.{module})") from None
+        raise UsageError(f"{what} needs the package {exc.name!r}: pip install {exc.name}") from None
+
+
+def _dask_call(fn, *a, **kw):
+    mod = _optional("dask", "--scheduler")
+    func = getattr(mod, fn, None)
+    if func is None:
+        raise UsageError(f"--scheduler: quatarray.dask has no {fn} yet")
+    return int(func(*a, **kw) or 0)
+
+
+def cmd_demo(args):
+    return int(_optional("demo", "demo").run(out_dir=args.out) or 0)
+
+
+def cmd_bench(args):
+    if args.n is not None and args.n < 1:
+        raise UsageError(f"--n must be positive, got {args.n}")
+    return int(_optional("bench", "bench").run(n=args.n, json_path=args.json) or 0)
+
+
+def cmd_plot(args):
+    mod = _optional("plot", "plot")
+    check_output(args.OUT, [args.IN], args.force)
+    return int(
+        mod.plot_file(args.IN, args.OUT, fmt=args.format, layout=args.layout, joint=args.joint,
+                      chunk=args.chunk, on_invalid=args.on_invalid) or 0
+    )
+
+
+# --------------------------------------------------------------------------
+# argument parsing
+
+
+def _rows(s):
+    try:
+        v = int(float(s)) if "e" in s.lower() else int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of rows, got {s!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1 row, got {v}")
+    return v
+
+
+def _positive(s):
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {s!r}") from None
+    if not (v > 0 and np.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {s!r}")
+    return v
+
+
+def build_parser():
+    io_opts = argparse.ArgumentParser(add_help=False)
+    g = io_opts.add_argument_group("input and output")
+    g.add_argument("--format", choices=FORMATS, default="auto",
+                   help="input format (default: by extension and header)")
+    g.add_argument("--layout", choices=("wxyz", "xyzw"), default=None,
+                   help="quaternion column order of inputs without named columns (default wxyz)")
+    g.add_argument("--joint", metavar="NAME", help="BVH joint to read (default: the root)")
+    g.add_argument("--chunk", type=_rows, default=DEFAULT_CHUNK, metavar="ROWS",
+                   help=f"rows per chunk (default {DEFAULT_CHUNK})")
+    g.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (default: when stderr is a terminal)")
+    g.add_argument("--on-invalid", choices=("error", "drop"), default="error",
+                   help="bad rows stop the run (default) or are dropped and counted")
+    g.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+
+    p = argparse.ArgumentParser(
+        prog="quatarray",
+        description="Batch processing of large rotation streams: convert, clean, resample, rotate, compose.",
+        epilog="Quaternions are (w, x, y, z). Exit status: 0 ok, 1 bad data, 2 bad usage. "
+               "Formats: npy, csv (named columns t, x y z, qw qx qy qz), tum, euroc, kitti, parquet, bvh.",
+    )
+    from . import __version__
+
+    p.add_argument("--version", action="version", version=f"quatarray {__version__}")
+    sub = p.add_subparsers(dest="verb", metavar="VERB")
+
+    s = sub.add_parser("demo", help="the main job end to end on a packaged sample")
+    s.add_argument("--out", metavar="DIR", default=None, help="output folder (default: a new folder here)")
+    s.set_defaults(func=cmd_demo)
+
+    s = sub.add_parser("info", parents=[io_opts], help="rows, columns, times, norms and sign flips of a stream")
+    s.add_argument("IN")
+    s.set_defaults(func=cmd_info)
+
+    s = sub.add_parser("convert", parents=[io_opts], help="convert quaternions to another representation",
+                       description=f"Targets: {TARGETS}.")
+    s.add_argument("IN")
+    s.add_argument("OUT")
+    s.add_argument("--to", required=True, metavar="TARGET", help=TARGETS)
+    s.add_argument("--degrees", action="store_true", help="angles in degrees (rotvec, axis-angle, euler)")
+    s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
+    s.set_defaults(func=cmd_convert)
+
+    s = sub.add_parser("resample", parents=[io_opts], help="resample a timestamped stream (Shoemake's Bézier)")
+    s.add_argument("IN")
+    s.add_argument("OUT")
+    m = s.add_mutually_exclusive_group(required=True)
+    m.add_argument("--rate", type=_positive, metavar="HZ", help="new times t0 + k/HZ up to the last key")
+    m.add_argument("--times", metavar="FILE", help="new times from a file (npy, one per line, or a stream)")
+    s.add_argument("--method", choices=METHODS, default="bezier", help="interpolation (default bezier)")
+    s.add_argument("--in-rate", type=_positive, metavar="HZ",
+                   help="sampling rate of an input without a time column (row i is at i/HZ s)")
+    s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
+    s.set_defaults(func=cmd_resample)
+
+    s = sub.add_parser("unflip", parents=[io_opts], help="make the quaternion signs continuous")
+    s.add_argument("IN")
+    s.add_argument("OUT")
+    s.set_defaults(func=cmd_unflip)
+
+    s = sub.add_parser("rotate", parents=[io_opts], help="rotate vectors by quaternions, row by row")
+    s.add_argument("QUATS")
+    s.add_argument("VECTORS")
+    s.add_argument("OUT")
+    s.set_defaults(func=cmd_rotate)
+
+    s = sub.add_parser("compose", parents=[io_opts], help="compose two rotation (or pose) streams, A∘B")
+    s.add_argument("A")
+    s.add_argument("B")
+    s.add_argument("OUT")
+    s.set_defaults(func=cmd_compose)
+
+    s = sub.add_parser("bench", help="side-by-side throughput against scipy and friends")
+    s.add_argument("--n", type=_rows, default=None, metavar="N", help="batch size")
+    s.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    s.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
+    s.add_argument("IN")
+    s.add_argument("OUT", metavar="OUT.png")
+    s.set_defaults(func=cmd_plot)
+    return p
+
+
+def main(argv=None):
+    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, usage errors
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    if not args.verb:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except UsageError as exc:
+        print(f"quatarray {args.verb}: error: {exc}", file=sys.stderr)
+        return 2
+    except DataError as exc:
+        print(str(exc), file=sys.stderr)
+        return 1
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("quatarray: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
