@@ -28,43 +28,60 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, is_weak, result_dtype, shape_error
+from ._validate import as_float, check_core, elementwise, is_weak, result_dtype
+from .conversions import cofactor33, det33, from_matrix, load33, qmatrix, store33
 
 _F64 = np.dtype(np.float64)
 _F32 = np.dtype(np.float32)
 
 # --------------------------------------------------------------------------
-# per-element helpers on 3×3 matrices held as a tuple of three columns
-
-
-@element
-def _load33(a, i):
-    """Columns of a[i] (a 3×3 block)."""
-    return (
-        (a[i, 0, 0], a[i, 1, 0], a[i, 2, 0]),
-        (a[i, 0, 1], a[i, 1, 1], a[i, 2, 1]),
-        (a[i, 0, 2], a[i, 1, 2], a[i, 2, 2]),
-    )
-
-
-@element
-def _store33(out, i, m):
-    for j in range(3):
-        c = m[j]
-        out[i, 0, j] = c[0]
-        out[i, 1, j] = c[1]
-        out[i, 2, j] = c[2]
+# per-element helpers; 3×3 matrices are row-major 9-tuples as in
+# quatarray.conversions (load33, store33, qmatrix, det33, cofactor33)
 
 
 @element
 def _matvec(m, r):
-    """M r with M given by its columns."""
-    a, b, c = m
+    """M r."""
     return (
-        a[0] * r[0] + b[0] * r[1] + c[0] * r[2],
-        a[1] * r[0] + b[1] * r[1] + c[1] * r[2],
-        a[2] * r[0] + b[2] * r[1] + c[2] * r[2],
+        m[0] * r[0] + m[1] * r[1] + m[2] * r[2],
+        m[3] * r[0] + m[4] * r[1] + m[5] * r[2],
+        m[6] * r[0] + m[7] * r[1] + m[8] * r[2],
     )
+
+
+@element
+def _matmul(a, b):
+    """A B."""
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+@element
+def _transpose(a):
+    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
+
+
+@element
+def _scale9(a, s):
+    return (a[0] * s, a[1] * s, a[2] * s, a[3] * s, a[4] * s, a[5] * s, a[6] * s, a[7] * s, a[8] * s)
+
+
+@element
+def _lerp9(a, b, u, t):
+    return (
+        a[0] * u + b[0] * t, a[1] * u + b[1] * t, a[2] * u + b[2] * t,
+        a[3] * u + b[3] * t, a[4] * u + b[4] * t, a[5] * u + b[5] * t,
+        a[6] * u + b[6] * t, a[7] * u + b[7] * t, a[8] * u + b[8] * t,
+    )  # fmt: skip
 
 
 @element
@@ -78,46 +95,17 @@ def _scale3(a, s):
 
 
 @element
-def _dot3(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@element
-def _basis(x, j):
-    """Unit vector e_j in x's float type."""
-    z = like(x, 0.0)
-    o = like(x, 1.0)
-    if j == 0:
-        return (o, z, z)
-    if j == 1:
-        return (z, o, z)
-    return (z, z, o)
-
-
-@element
-def _rotate_columns(q, m):
-    """R(q) M, column by column (the paper's q·M·q⁻¹)."""
-    return (E.qrotate(q, m[0]), E.qrotate(q, m[1]), E.qrotate(q, m[2]))
-
-
-@element
 def _mat_inverse(m):
-    """(M⁻¹ by columns, |det M| / (|c0||c1||c2|)); the ratio is 1 for orthogonal
-    columns and 0 for a singular M (Hadamard's bound), so it measures conditioning."""
-    c0, c1, c2 = m
-    r0 = E.cross(c1, c2)
-    r1 = E.cross(c2, c0)
-    r2 = E.cross(c0, c1)
-    det = _dot3(c0, r0)
-    k = like(det, 1.0) / det
-    inv = (
-        (r0[0] * k, r1[0] * k, r2[0] * k),
-        (r0[1] * k, r1[1] * k, r2[1] * k),
-        (r0[2] * k, r1[2] * k, r2[2] * k),
-    )
-    den = E.vnorm(c0) * E.vnorm(c1) * E.vnorm(c2)
+    """(M⁻¹, |det M| / (|r0| |r1| |r2|)) for rows r_k of M.
+
+    The ratio is 1 for orthogonal rows and 0 for a singular M (Hadamard's
+    bound), a scale-free measure of how close M is to singular.
+    """
+    det = det33(m)
+    inv = _scale9(_transpose(cofactor33(m)), like(det, 1.0) / det)
+    den = E.vnorm((m[0], m[1], m[2])) * E.vnorm((m[3], m[4], m[5])) * E.vnorm((m[6], m[7], m[8]))
     ratio = abs(det) / den
-    if den == like(den, 0.0):  # a zero column: singular (not 0/0 = nan)
+    if den == like(den, 0.0):  # a zero row: singular (not 0/0 = nan)
         ratio = like(den, 0.0)
     return inv, ratio
 
@@ -136,7 +124,7 @@ def _apply_vqs(v, q, s, p, out):
 @rowloop
 def _apply_vqm(v, q, m, p, out):
     for i in prange(p.shape[0]):
-        r = _matvec(_load33(m, i), E.load3(p, i))
+        r = _matvec(load33(m, i), E.load3(p, i))
         E.store3(out, i, _add3(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
 
 
@@ -149,10 +137,16 @@ def _apply_affine(p, a, t, out):
     a20, a21, a22 = a[2, 0], a[2, 1], a[2, 2]
     t0, t1, t2 = t[0], t[1], t[2]
     for i in prange(p.shape[0]):
-        x, y, z = p[i, 0], p[i, 1], p[i, 2]
-        out[i, 0] = a00 * x + a01 * y + a02 * z + t0
-        out[i, 1] = a10 * x + a11 * y + a12 * z + t1
-        out[i, 2] = a20 * x + a21 * y + a22 * z + t2
+        x, y, z = E.load3(p, i)
+        E.store3(
+            out,
+            i,
+            (
+                a00 * x + a01 * y + a02 * z + t0,
+                a10 * x + a11 * y + a12 * z + t1,
+                a20 * x + a21 * y + a22 * z + t2,
+            ),
+        )
 
 
 @rowloop
@@ -173,20 +167,14 @@ def _compose_vqm(va, qa, ma, vb, qb, mb, vo, qo, mo):
     for i in prange(va.shape[0]):
         qa_ = E.load4(qa, i)
         qb_ = E.load4(qb, i)
-        qbc = E.qconj(qb_)
-        ma_ = _load33(ma, i)
-        mb_ = _load33(mb, i)
+        ma_ = load33(ma, i)
+        rb = qmatrix(qb_)
         v = _add3(E.qrotate(qa_, _matvec(ma_, E.load3(vb, i))), E.load3(va, i))
         q = E.qmul(qa_, qb_)
-        # R_bᵀ M_a R_b M_b, one column of M_b at a time.
-        m = (
-            E.qrotate(qbc, _matvec(ma_, E.qrotate(qb_, mb_[0]))),
-            E.qrotate(qbc, _matvec(ma_, E.qrotate(qb_, mb_[1]))),
-            E.qrotate(qbc, _matvec(ma_, E.qrotate(qb_, mb_[2]))),
-        )
+        m = _matmul(_transpose(rb), _matmul(ma_, _matmul(rb, load33(mb, i))))  # R_bᵀ M_a R_b M_b
         E.store3(vo, i, v)
         E.store4(qo, i, q)
-        _store33(mo, i, m)
+        store33(mo, i, m)
 
 
 @rowloop
@@ -204,56 +192,36 @@ def _inverse_vqs(v, q, s, vo, qo, so):
 def _inverse_vqm(v, q, m, vo, qo, mo, ratio):
     for i in prange(v.shape[0]):
         q_ = E.load4(q, i)
-        qc = E.qconj(q_)
-        inv, r = _mat_inverse(_load33(m, i))
+        r = qmatrix(q_)
+        rt = _transpose(r)
+        inv, c = _mat_inverse(load33(m, i))
         # [v, q, M]⁻¹ = [−M⁻¹ Rᵀ v, q⁻¹, R M⁻¹ Rᵀ]
-        vi = _matvec(inv, E.qrotate(qc, E.load3(v, i)))
-        z = like(r, 0.0)
-        e0 = _basis(z, 0)
-        e1 = _basis(z, 1)
-        e2 = _basis(z, 2)
-        mi = (
-            E.qrotate(q_, _matvec(inv, E.qrotate(qc, e0))),
-            E.qrotate(q_, _matvec(inv, E.qrotate(qc, e1))),
-            E.qrotate(q_, _matvec(inv, E.qrotate(qc, e2))),
-        )
-        E.store3(vo, i, _scale3(vi, like(r, -1.0)))
+        vi = _matvec(inv, _matvec(rt, E.load3(v, i)))
+        E.store3(vo, i, _scale3(vi, like(c, -1.0)))
         E.store4(qo, i, E.qinverse(q_))
-        _store33(mo, i, mi)
-        ratio[i] = r
+        store33(mo, i, _matmul(r, _matmul(inv, rt)))
+        ratio[i] = c
 
 
 @element
-def _store_homogeneous(out, i, lin, v):
-    for j in range(3):
-        c = lin[j]
-        out[i, 0, j] = c[0]
-        out[i, 1, j] = c[1]
-        out[i, 2, j] = c[2]
-        out[i, 3, j] = like(c[0], 0.0)
-    out[i, 0, 3] = v[0]
-    out[i, 1, 3] = v[1]
-    out[i, 2, 3] = v[2]
-    out[i, 3, 3] = like(v[0], 1.0)
+def _store_homogeneous(out, i, a, v):
+    zero = like(v[0], 0.0)
+    out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = a[0], a[1], a[2], v[0]
+    out[i, 1, 0], out[i, 1, 1], out[i, 1, 2], out[i, 1, 3] = a[3], a[4], a[5], v[1]
+    out[i, 2, 0], out[i, 2, 1], out[i, 2, 2], out[i, 2, 3] = a[6], a[7], a[8], v[2]
+    out[i, 3, 0], out[i, 3, 1], out[i, 3, 2], out[i, 3, 3] = zero, zero, zero, like(v[0], 1.0)
 
 
 @rowloop
 def _matrix_vqs(v, q, s, out):
     for i in prange(v.shape[0]):
-        q_ = E.load4(q, i)
-        z = like(s, 0.0)
-        lin = (
-            E.qrotate(q_, _scale3(_basis(z, 0), s[i])),
-            E.qrotate(q_, _scale3(_basis(z, 1), s[i])),
-            E.qrotate(q_, _scale3(_basis(z, 2), s[i])),
-        )
-        _store_homogeneous(out, i, lin, E.load3(v, i))
+        _store_homogeneous(out, i, _scale9(qmatrix(E.load4(q, i)), s[i]), E.load3(v, i))
 
 
 @rowloop
 def _matrix_vqm(v, q, m, out):
     for i in prange(v.shape[0]):
-        _store_homogeneous(out, i, _rotate_columns(E.load4(q, i), _load33(m, i)), E.load3(v, i))
+        _store_homogeneous(out, i, _matmul(qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
 
 
 @rowloop
@@ -272,14 +240,7 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
         t_ = t[i]
         u = like(t_, 1.0) - t_
         E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
-        a = _load33(ma, i)
-        b = _load33(mb, i)
-        m = (
-            _add3(_scale3(a[0], u), _scale3(b[0], t_)),
-            _add3(_scale3(a[1], u), _scale3(b[1], t_)),
-            _add3(_scale3(a[2], u), _scale3(b[2], t_)),
-        )
-        _store33(mo, i, m)
+        store33(mo, i, _lerp9(load33(ma, i), load33(mb, i), u, t_))
 
 
 # --------------------------------------------------------------------------
@@ -334,8 +295,6 @@ def _polar(m4, rtol):
     where the linear part A = R(q) P with P symmetric. A reflection (det A < 0)
     is written as the rotation −U times the negative definite −P.
     """
-    from .conversions import from_matrix
-
     m = as_float(m4, "m4")
     if m.ndim < 2 or m.shape[-1] != 4 or m.shape[-2] not in (3, 4):
         raise ValueError(f"Expected `m4` to have shape (..., 4, 4) or (..., 3, 4), got {m.shape}.")
@@ -844,7 +803,7 @@ class VQM(_Transform):
         Raises
         ------
         ValueError
-            If an M is singular (|det M| ≤ 16 ε |m₀||m₁||m₂| for columns mⱼ),
+            If an M is singular (|det M| ≤ 16 ε |m₀||m₁||m₂| for rows mⱼ),
             naming the first such row.
 
         Examples
@@ -861,7 +820,7 @@ class VQM(_Transform):
             k = bad[0]
             raise ValueError(
                 f"Expected `M` to be invertible;{_row_name(self.shape, k)} is singular "
-                f"(|det M| / (|m0| |m1| |m2|) = {ratio[k]:.3g})."
+                f"(|det M| / (|row0| |row1| |row2|) = {ratio[k]:.3g})."
             )
         return VQM._new(*_as_arrays(v, q, m))
 
