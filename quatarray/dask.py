@@ -359,22 +359,42 @@ def _unflip_apply(local, carry, axis):
     return np.where(carry, -local, local)
 
 
+def _carry_all(carry_fn, summaries):
+    """Every chunk's carry along one scan (None for the first chunk), in one task."""
+    carries, carry = [None], None
+    for prev, cur in zip(summaries[:-1], summaries[1:]):
+        carry = carry_fn(carry, prev, cur)
+        carries.append(carry)
+    return carries
+
+
 def _scan(x, axis, kind, local_fn, summary_fn, carry_fn, apply_fn):
-    """A blocked prefix scan along leading `axis` of `x` (core axis whole)."""
+    """A blocked prefix scan along leading `axis` of `x` (core axis whole).
+
+    Per block: ``local_fn`` (the in-memory scan of the block) and
+    ``summary_fn`` (what the next block needs, e.g. the last row). Per line of
+    blocks along `axis`: one task runs ``carry_fn`` down the summaries (a
+    cheap sequential pass over one small item per block). Per block again:
+    ``apply_fn(local, carry)`` gives the global result. The graph depth stays
+    four whatever the number of chunks.
+    """
     token = tokenize(kind, x, axis)
     lname, sname, cname, oname = (f"{kind}-{p}-{token}" for p in ("local", "summary", "carry", "out"))
+    nb = x.numblocks[axis]
     dsk = {}
     for idx in np.ndindex(*x.numblocks):
         i = idx[axis]
         dsk[(lname,) + idx] = (local_fn, (x.name,) + idx, axis)
-        dsk[(sname,) + idx] = (summary_fn, (lname,) + idx, axis)
-        if i == 0:
+        line = idx[:axis] + (0,) + idx[axis + 1 :]
+        if nb == 1:
             dsk[(oname,) + idx] = (apply_fn, (lname,) + idx, None, axis)
             continue
-        prev = idx[:axis] + (i - 1,) + idx[axis + 1 :]
-        carry = None if i == 1 else (cname,) + prev
-        dsk[(cname,) + idx] = (carry_fn, carry, (sname,) + prev, (sname,) + idx)
-        dsk[(oname,) + idx] = (apply_fn, (lname,) + idx, (cname,) + idx, axis)
+        dsk[(sname,) + idx] = (summary_fn, (lname,) + idx, axis)
+        if i == 0:
+            dsk[(cname,) + line] = (
+                _carry_all, carry_fn, [(sname,) + idx[:axis] + (j,) + idx[axis + 1 :] for j in range(nb)]
+            )
+        dsk[(oname,) + idx] = (apply_fn, (lname,) + idx, (operator.getitem, (cname,) + line, i), axis)
     graph = HighLevelGraph.from_collections(oname, dsk, dependencies=[x])
     return da.Array(graph, oname, chunks=x.chunks, meta=x._meta)
 
