@@ -318,7 +318,10 @@ def _from_axis_angle(axis, ang, scale, out):
             bad = min(bad, i)
         h = like(un, 0.5) * ang[i] * scale[i]
         k = np.sin(h) / un
-        E.store4(out, i, (np.cos(h), k * u[0], k * u[1], k * u[2]))
+        c = np.cos(h)
+        if not np.isfinite(un):
+            c = like(un, np.nan)  # a nan or inf axis gives nan, not (cos h, nan, …)
+        E.store4(out, i, (c, k * u[0], k * u[1], k * u[2]))
     return bad if bad < n else -1
 
 
