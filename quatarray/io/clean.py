@@ -93,7 +93,7 @@ class Cleaner:
             if bad.any():
                 i = int(np.argmax(bad))
                 what = "repeated" if t[i] == prev[i] else "decreasing"
-                self._fail(ch.row0 + i, f"{what} time {t[i]!r} (previous {prev[i]!r}); times must increase")
+                self._fail(ch.row0 + i, f"{what} time {float(t[i])!r} (previous {float(prev[i])!r}); times must increase")
             self.last_t = float(t[-1])
             return good
         # drop: a row is kept when its time is after the last kept time; the
@@ -108,7 +108,7 @@ class Cleaner:
 
     def _why(self, ch, i, norms):
         if ch.t is not None and not np.isfinite(ch.t[i]):
-            return f"time is not a finite number ({ch.t[i]!r})"
+            return f"time is not a finite number ({float(ch.t[i])!r})"
         if ch.pos is not None and not np.isfinite(ch.pos[i]).all():
             return f"position is not finite ({_fmt(ch.pos[i])})"
         row = ch.data[i]

@@ -1,0 +1,456 @@
+"""Tests for quatarray.io: readers, writers and the row checks."""
+
+import os
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import quatarray as qa
+from quatarray import io
+from quatarray.io import Chunk, Cleaner, DataError, UsageError
+
+
+def unit(rng, n, dtype=np.float64):
+    q = rng.standard_normal((n, 4))
+    return (q / np.linalg.norm(q, axis=1)[:, None]).astype(dtype)
+
+
+def read_all(reader, on_invalid="error", ordered=False):
+    clean = Cleaner(reader, on_invalid, ordered=ordered)
+    chunks = [clean(ch) for ch in reader]
+    chunks = [c for c in chunks if len(c)]
+    return io.concat(chunks), clean
+
+
+def write(path, text):
+    path.write_text(text)
+    return str(path)
+
+
+def fr(v):
+    return repr(float(v))
+
+
+def same_rotation(a, b, atol=1e-9):
+    d = np.abs(np.sum(np.asarray(a) * np.asarray(b), axis=-1))
+    return np.allclose(d, 1, atol=atol)
+
+
+# --------------------------------------------------------------------------
+# npy
+
+
+def test_npy_reader_chunks_and_memmap(tmp_path, rng):
+    q = unit(rng, 1000)
+    p = tmp_path / "q.npy"
+    np.save(p, q)
+    r = io.open_stream(p, chunk=128)
+    assert (r.format, r.rows, r.has_time, r.has_pos) == ("npy", 1000, False, False)
+    chunks = list(r)
+    assert [len(c) for c in chunks] == [128] * 7 + [104]
+    assert isinstance(chunks[1].data, np.memmap)  # mapped, not loaded
+    assert not chunks[1].data.flags.writeable
+    assert chunks[3].row0 == 384
+    np.testing.assert_array_equal(io.concat(chunks).data, q)
+
+
+def test_npy_layout_dtype_and_matrices(tmp_path, rng):
+    q = unit(rng, 50, np.float32)
+    np.save(tmp_path / "xyzw.npy", q[:, [1, 2, 3, 0]])
+    got, _ = read_all(io.open_stream(tmp_path / "xyzw.npy", layout="xyzw", chunk=16))
+    assert got.data.dtype == np.float32
+    np.testing.assert_array_equal(got.data, q)
+    np.save(tmp_path / "int.npy", np.tile([1, 0, 0, 0], (3, 1)))
+    got, _ = read_all(io.open_stream(tmp_path / "int.npy"))
+    assert got.data.dtype == np.float64
+    m = Rotation.from_quat(q.astype(float), scalar_first=True).as_matrix()
+    np.save(tmp_path / "m.npy", m)
+    got, _ = read_all(io.open_stream(tmp_path / "m.npy", chunk=7))
+    assert same_rotation(got.data, q.astype(float), 1e-6)
+    np.save(tmp_path / "f.npy", np.asfortranarray(q))
+    got, _ = read_all(io.open_stream(tmp_path / "f.npy", chunk=8))
+    np.testing.assert_array_equal(got.data, q)
+
+
+@pytest.mark.parametrize(
+    "arr, msg",
+    [
+        (np.zeros((5, 3)), r"expected quaternions of shape \(N, 4\).*got \(5, 3\)"),
+        (np.zeros((5, 4), complex), "expected an array of real numbers"),
+        (np.zeros((0, 4)), "empty file"),
+    ],
+)
+def test_npy_bad(tmp_path, arr, msg):
+    np.save(tmp_path / "bad.npy", arr)
+    with pytest.raises(DataError, match=msg):
+        io.open_stream(tmp_path / "bad.npy")
+
+
+def test_npy_truncated_and_garbage(tmp_path):
+    p = tmp_path / "t.npy"
+    np.save(p, np.zeros((100, 4)))
+    with open(p, "r+b") as f:
+        f.truncate(500)
+    with pytest.raises(DataError, match="truncated"):
+        io.open_stream(p)
+    g = write(tmp_path / "g.npy", "not numpy")
+    with pytest.raises(DataError, match="not a valid .npy"):
+        io.open_stream(g)
+
+
+def test_npy_writer_incremental(tmp_path, rng):
+    out = tmp_path / "o.npy"
+    m = rng.standard_normal((25, 3, 3)).astype(np.float32)
+    with io.open_writer(out, ["r"] * 9, core=(3, 3)) as w:
+        for a in range(0, 25, 10):
+            w.write(m[a : a + 10])
+    back = np.load(out)
+    assert back.dtype == np.float32
+    np.testing.assert_array_equal(back, m)
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
+    with io.open_writer(tmp_path / "e.npy", ["qw", "qx", "qy", "qz"]) as w:
+        pass
+    assert np.load(tmp_path / "e.npy").shape == (0, 4)
+
+
+# --------------------------------------------------------------------------
+# text formats
+
+
+def test_csv_named_columns_any_order(tmp_path, rng):
+    q = unit(rng, 20)
+    t = np.cumsum(rng.uniform(0.1, 0.2, 20))
+    lines = ["qz,time,qx,X,qw,y,z,qy,extra"] + [
+        f"{fr(q[i,3])},{fr(t[i])},{fr(q[i,1])},{i},{fr(q[i,0])},{2*i},{3*i},{fr(q[i,2])},foo" for i in range(20)
+    ]
+    p = write(tmp_path / "s.csv", "\n".join(lines) + "\n")
+    r = io.open_stream(p, chunk=4)
+    assert r.format == "csv" and r.has_time and r.has_pos
+    got, _ = read_all(r)
+    np.testing.assert_array_equal(got.data, q)  # full precision, reordered to wxyz
+    np.testing.assert_array_equal(got.t, t)
+    np.testing.assert_array_equal(got.pos, np.arange(20)[:, None] * [1, 2, 3])
+
+
+@pytest.mark.parametrize("layout", ["wxyz", "xyzw"])
+def test_csv_headerless_layouts(tmp_path, rng, layout):
+    q = unit(rng, 6)
+    cols = q if layout == "wxyz" else q[:, [1, 2, 3, 0]]
+    t = np.arange(6) * 0.5
+    p = write(tmp_path / "h.csv", "\n".join(",".join(map(fr, [t[i], *cols[i]])) for i in range(6)))
+    got, _ = read_all(io.open_stream(p, layout=layout))
+    np.testing.assert_array_equal(got.data, q)
+    np.testing.assert_array_equal(got.t, t)
+
+
+def test_csv_vectors(tmp_path):
+    p = write(tmp_path / "v.csv", "x,y,z\n1,2,3\n4,5,6\n")
+    got, _ = read_all(io.open_stream(p, kind="vector"))
+    np.testing.assert_array_equal(got.data, [[1, 2, 3], [4, 5, 6]])
+    p = write(tmp_path / "v2.csv", "1 2 3\n4 5 6\n")
+    got, _ = read_all(io.open_stream(p, kind="vector"))
+    np.testing.assert_array_equal(got.data, [[1, 2, 3], [4, 5, 6]])
+
+
+def test_tum_comments_scalar_last(tmp_path):
+    p = write(
+        tmp_path / "traj.txt",
+        "# ground truth\n# timestamp tx ty tz qx qy qz qw\n"
+        "1305031098.6659 1.0 2.0 3.0 0 0 0.7071067811865476 0.7071067811865476\n"
+        "1305031098.6759 1.5 2.5 3.5 0 0 0 1\n",
+    )
+    r = io.open_stream(p)
+    assert (r.format, r.layout) == ("tum", "xyzw")
+    got, _ = read_all(r)
+    np.testing.assert_allclose(got.data, [[0.7071067811865476, 0, 0, 0.7071067811865476], [1, 0, 0, 0]])
+    assert got.t[0] == 1305031098.6659
+    np.testing.assert_array_equal(got.pos, [[1, 2, 3], [1.5, 2.5, 3.5]])
+
+
+def test_euroc_nanoseconds(tmp_path):
+    head = "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], v [m]\n"
+    p = write(tmp_path / "gt.csv", head + "1403715524907143168,1,2,3,1,0,0,0,9\n1403715524912143104,1,2,3,0,1,0,0,9\n")
+    r = io.open_stream(p)
+    assert r.format == "euroc"
+    got, _ = read_all(r)
+    # seconds rounded once from the exact integer nanoseconds
+    assert got.t[0] == 1403715524 + 0.907143168
+    assert got.t[1] - got.t[0] == pytest.approx(0.004999936, abs=1e-6)
+    np.testing.assert_array_equal(got.data, [[1, 0, 0, 0], [0, 1, 0, 0]])
+
+
+def test_kitti_matrix_rows(tmp_path, rng):
+    q = unit(rng, 5)
+    m = Rotation.from_quat(q, scalar_first=True).as_matrix()
+    tr = rng.standard_normal((5, 3))
+    rows = np.concatenate([m, tr[:, :, None]], axis=2).reshape(5, 12)
+    p = write(tmp_path / "poses.txt", "\n".join(" ".join(f"{v:.12e}" for v in r) for r in rows) + "\n")
+    r = io.open_stream(p)
+    assert r.format == "kitti" and r.has_pos and not r.has_time
+    got, _ = read_all(r)
+    assert same_rotation(got.data, q)
+    np.testing.assert_allclose(got.pos, tr, rtol=1e-11)
+
+
+def test_parquet_roundtrip(tmp_path, rng):
+    q = unit(rng, 30)
+    t = np.linspace(0, 1, 30)
+    pos = rng.standard_normal((30, 3))
+    out = tmp_path / "s.parquet"
+    with io.open_writer(out, ["qw", "qx", "qy", "qz"], time=True, pos=True) as w:
+        w.write(q[:10], t[:10], pos[:10])
+        w.write(q[10:], t[10:], pos[10:])
+    got, _ = read_all(io.open_stream(out, chunk=8))
+    np.testing.assert_array_equal(got.data, q)
+    np.testing.assert_array_equal(got.t, t)
+    np.testing.assert_array_equal(got.pos, pos)
+
+
+def test_csv_writer_full_precision_and_names(tmp_path, rng):
+    q = unit(rng, 10)
+    t = 1.0e9 + rng.uniform(0, 1, 10)
+    out = tmp_path / "o.csv"
+    with io.open_writer(out, ["qw", "qx", "qy", "qz"], time=True) as w:
+        w.write(q, t)
+    text = out.read_text().splitlines()
+    assert text[0] == "t,qw,qx,qy,qz"
+    back = np.loadtxt(out, delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(back[:, 0], t)
+    np.testing.assert_array_equal(back[:, 1:], q)
+
+
+def test_tum_writer(tmp_path):
+    out = tmp_path / "o.txt"
+    with io.open_writer(out, ["qw", "qx", "qy", "qz"], time=True, pos=True) as w:
+        w.write(np.array([[1.0, 0, 0, 0]]), np.array([2.5]), np.array([[1.0, 2, 3]]))
+    assert out.read_text().splitlines() == ["# timestamp tx ty tz qx qy qz qw", "2.5 1 2 3 0 0 0 1"]
+    with pytest.raises(UsageError, match="TUM"):
+        io.open_writer(tmp_path / "x.txt", ["qw", "qx", "qy", "qz"])
+
+
+def test_writer_abort_leaves_nothing(tmp_path):
+    out = tmp_path / "o.csv"
+    out.write_text("precious")
+    with pytest.raises(RuntimeError):
+        with io.open_writer(out, ["qw", "qx", "qy", "qz"]) as w:
+            w.write(np.ones((3, 4)))
+            raise RuntimeError("boom")
+    assert out.read_text() == "precious"
+    assert sorted(os.listdir(tmp_path)) == ["o.csv"]
+
+
+def test_check_output(tmp_path):
+    a = tmp_path / "a.npy"
+    a.write_bytes(b"x")
+    with pytest.raises(UsageError, match="is the input"):
+        io.check_output(a, [a], force=True)
+    with pytest.raises(UsageError, match="is the input"):
+        io.check_output(tmp_path / "." / "a.npy", [str(a)], force=True)
+    with pytest.raises(UsageError, match="--force"):
+        io.check_output(a, [tmp_path / "b.npy"])
+    io.check_output(a, [tmp_path / "b.npy"], force=True)
+    with pytest.raises(UsageError, match="does not exist"):
+        io.check_output(tmp_path / "no" / "o.npy")
+    with pytest.raises(UsageError, match="extension"):
+        io.open_writer(tmp_path / "o.dat", ["qw"])
+
+
+# --------------------------------------------------------------------------
+# bad text files: the first bad line is named
+
+
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("t,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0\n", r"f\.csv:3: expected 5 fields, got 4"),
+        ("t,qw,qx,qy,qz\n0,1,0,0,0\n\n1,1,x1,0,0\n", r"f\.csv:4: not a number: 'x1' in column qx"),
+        ("t,qw,qx,qy,qz\n0,1,0,0,0\n1,1,,0,0\n", r"f\.csv:3: empty field in column qx|f\.csv:3: quaternion is not finite"),
+        ("t,qw,qx,qy,qz\n0,1,0,0,0\n1,0,0,0,0\n", r"f\.csv:3: zero quaternion"),
+        ("t,qw,qx,qy,qz\n0,1,0,0,0\n1,inf,0,0,0\n", r"f\.csv:3: quaternion is not finite"),
+        ("t,qw,qx,qy,qz\nnan,1,0,0,0\n", r"f\.csv:2: time is not a finite number"),
+        ("", r"f\.csv: empty file"),
+        ("t,qw,qx,qy,qz\n", r"f\.csv: empty file"),
+        ("t,qw,qx,qy\n0,1,0,0\n", r"f\.csv:1: missing column qz"),
+        ("1,0,0\n", r"f\.csv:1: expected 4 \(quaternion\).*got 3"),
+    ],
+)
+def test_bad_csv(tmp_path, text, msg):
+    p = write(tmp_path / "f.csv", text)
+    with pytest.raises(DataError, match=msg):
+        read_all(io.open_stream(p, name="f.csv"))
+
+
+def test_bad_tum_line(tmp_path):
+    p = write(tmp_path / "t.txt", "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n")
+    with pytest.raises(DataError, match=r"t\.txt:3: expected 8 numbers, got 7"):
+        read_all(io.open_stream(p, name="t.txt"))
+
+
+def test_drop_counts(tmp_path):
+    p = write(
+        tmp_path / "f.csv",
+        "t,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0\n2,1,abc,0,0\n3,0,0,0,0\n4,nan,0,0,0\n5,2,0,0,0\n5,1,0,0,0\n4,1,0,0,0\n6,1,0,0,0\n",
+    )
+    got, clean = read_all(io.open_stream(p, on_invalid="drop", chunk=2), "drop", ordered=True)
+    np.testing.assert_array_equal(got.t, [0, 5, 6])
+    np.testing.assert_array_equal(got.data, [[1, 0, 0, 0]] * 3)  # the (2, 0, 0, 0) row is normalised
+    assert clean.reader.skipped == 1 and clean.dropped == 5
+    assert clean.max_dev == 1.0
+    import io as _io
+
+    err = _io.StringIO()
+    clean.report(err)
+    assert "dropped 6 invalid rows" in err.getvalue()
+    assert "normalised 1 non-unit quaternion (largest | |q| - 1 | = 1)" in err.getvalue()
+
+
+def test_ordered_times_error_names_line(tmp_path):
+    p = write(tmp_path / "f.csv", "t,qw,qx,qy,qz\n0,1,0,0,0\n1,1,0,0,0\n1,1,0,0,0\n")
+    with pytest.raises(DataError, match=r"f\.csv:4: repeated time 1\.0"):
+        read_all(io.open_stream(p, name="f.csv", chunk=2), ordered=True)
+    q = Chunk(np.tile([1.0, 0, 0, 0], (4, 1)), np.array([0.0, 1, 2, 1.5]))
+    r = io.open_stream(p)
+    with pytest.raises(DataError, match="decreasing time 1.5"):
+        Cleaner(r, ordered=True)(q)
+
+
+def test_cleaner_float32_tolerance(tmp_path, rng):
+    q = unit(rng, 100, np.float32)
+    np.save(tmp_path / "q.npy", q)
+    r = io.open_stream(tmp_path / "q.npy")
+    got, clean = read_all(r)
+    assert clean.normalised == 0 and got.data.dtype == np.float32
+
+
+# --------------------------------------------------------------------------
+# bvh
+
+
+BVH = """HIERARCHY
+ROOT Hips
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT Knee
+  {
+    OFFSET 0 -1 0
+    CHANNELS 3 Yrotation Xrotation Zrotation
+    End Site
+    {
+      OFFSET 0 -1 0
+    }
+  }
+}
+MOTION
+Frames: 3
+Frame Time: 0.5
+1 2 3 10 20 30 5 6 7
+4 5 6 -40 50 170 8 9 10
+7 8 9 90 0 -90 11 12 13
+"""
+
+
+def test_bvh_root_and_joint(tmp_path):
+    p = write(tmp_path / "m.bvh", BVH)
+    r = io.open_stream(p)
+    assert (r.format, r.joint, r.seq, r.has_pos) == ("bvh", "Hips", "ZXY", True)
+    got, _ = read_all(r)
+    ang = np.array([[10, 20, 30], [-40, 50, 170], [90, 0, -90]], float)
+    assert same_rotation(got.data, Rotation.from_euler("ZXY", ang, degrees=True).as_quat(scalar_first=True))
+    np.testing.assert_array_equal(got.t, [0, 0.5, 1.0])
+    np.testing.assert_array_equal(got.pos, [[1, 2, 3], [4, 5, 6], [7, 8, 9]])
+    k = io.open_stream(p, joint="Knee")
+    assert k.seq == "YXZ" and not k.has_pos
+    got, _ = read_all(k)
+    ang = np.array([[5, 6, 7], [8, 9, 10], [11, 12, 13]], float)
+    assert same_rotation(got.data, Rotation.from_euler("YXZ", ang, degrees=True).as_quat(scalar_first=True))
+    with pytest.raises(UsageError, match="no joint 'Elbow'"):
+        io.open_stream(p, joint="Elbow")
+
+
+def test_bvh_bad_frames(tmp_path):
+    p = write(tmp_path / "m.bvh", BVH.replace("4 5 6 -40", "4 5 -40").replace("11 12 13", "11 x 13"))
+    with pytest.raises(DataError, match=r"m\.bvh:20: expected 9 numbers, got 8"):
+        read_all(io.open_stream(p, name="m.bvh"))
+    got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
+    assert len(got) == 1 and clean.reader.skipped == 2
+    with pytest.raises(DataError, match="no MOTION"):
+        io.open_stream(write(tmp_path / "n.bvh", BVH.split("MOTION")[0]))
+
+
+# --------------------------------------------------------------------------
+# times for resample --times
+
+
+def test_read_times(tmp_path):
+    np.save(tmp_path / "t.npy", np.array([0.0, 0.5]))
+    np.testing.assert_array_equal(io.read_times(tmp_path / "t.npy"), [0, 0.5])
+    p = write(tmp_path / "t.txt", "# times\n0.25\n0.75\n")
+    np.testing.assert_array_equal(io.read_times(p), [0.25, 0.75])
+    p = write(tmp_path / "s.csv", "t,qw,qx,qy,qz\n1,1,0,0,0\n2,1,0,0,0\n")
+    np.testing.assert_array_equal(io.read_times(p), [1, 2])
+    p = write(tmp_path / "b.txt", "0.25\nabc\n")
+    with pytest.raises(DataError, match=r"b\.txt:2: not a number"):
+        io.read_times(p, name="b.txt")
+
+
+# --------------------------------------------------------------------------
+# the real recordings
+
+
+REAL = {
+    "euroc_v102_groundtruth.csv": ("euroc", 16702, True, True),
+    "tum_freiburg1_xyz_groundtruth.txt": ("tum", 3000, True, True),
+    "tum_freiburg2_desk_groundtruth.txt": ("tum", 20957, True, True),
+    "kitti_00_poses.txt": ("kitti", 4541, False, True),
+    "mocapbank_walk.bvh": ("bvh", 455, True, True),
+    "free_mocap.bvh": ("bvh", 69, True, True),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REAL))
+def test_real_files_read(data_dir, name):
+    fmt, rows, has_t, has_pos = REAL[name]
+    r = io.open_stream(data_dir / name, chunk=4096)
+    assert (r.format, r.has_time, r.has_pos) == (fmt, has_t, has_pos)
+    got, clean = read_all(r)
+    assert len(got) == rows and clean.dropped == 0
+    np.testing.assert_allclose(np.linalg.norm(got.data, axis=1), 1, atol=1e-12)
+
+
+def test_real_tum_values(data_dir):
+    got, _ = read_all(io.open_stream(data_dir / "tum_freiburg1_xyz_groundtruth.txt"))
+    raw = np.loadtxt(data_dir / "tum_freiburg1_xyz_groundtruth.txt")
+    np.testing.assert_array_equal(got.t, raw[:, 0])
+    np.testing.assert_array_equal(got.pos, raw[:, 1:4])
+    ref = raw[:, [7, 4, 5, 6]] / np.linalg.norm(raw[:, 4:8], axis=1)[:, None]
+    np.testing.assert_allclose(got.data, ref, atol=1e-15)
+
+
+def test_real_euroc_values(data_dir):
+    got, _ = read_all(io.open_stream(data_dir / "euroc_v102_groundtruth.csv"))
+    raw = np.loadtxt(data_dir / "euroc_v102_groundtruth.csv", delimiter=",", usecols=range(8))
+    ns = np.loadtxt(data_dir / "euroc_v102_groundtruth.csv", delimiter=",", usecols=0, dtype=np.int64)
+    np.testing.assert_array_equal(got.t, (ns // 10**9) + (ns % 10**9) * 1e-9)
+    np.testing.assert_array_equal(got.pos, raw[:, 1:4])
+    assert same_rotation(got.data, raw[:, 4:8] / np.linalg.norm(raw[:, 4:8], axis=1)[:, None], 1e-12)
+
+
+def test_real_kitti_matches_scipy(data_dir):
+    got, _ = read_all(io.open_stream(data_dir / "kitti_00_poses.txt"))
+    raw = np.loadtxt(data_dir / "kitti_00_poses.txt").reshape(-1, 3, 4)
+    ref = Rotation.from_matrix(raw[:, :, :3]).as_quat(scalar_first=True)
+    assert same_rotation(got.data, ref, 1e-9)
+    np.testing.assert_array_equal(got.pos, raw[:, :, 3])
+
+
+def test_real_bvh_root_matches_scipy(data_dir):
+    path = data_dir / "mocapbank_walk.bvh"
+    got, _ = read_all(io.open_stream(path))
+    lines = path.read_text().splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("Frame Time")) + 1
+    motion = np.array([ln.split() for ln in lines[start:] if ln.strip()], float)
+    ref = Rotation.from_euler("ZXY", motion[:, 3:6], degrees=True).as_quat(scalar_first=True)
+    assert same_rotation(got.data, ref, 1e-12)
+    np.testing.assert_allclose(got.t, np.arange(455) * 0.033333)
