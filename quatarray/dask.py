@@ -445,3 +445,204 @@ def unflip(q, axis=0):
     """
     x, ax = _scan_input(q, axis, "unflip")
     return _scan(x, ax, "unflip", _unflip_local, _unflip_summary, _unflip_carry, _unflip_apply)
+
+
+# --------------------------------------------------------------------------
+# files: convert_file and resample_file (quatarray convert/resample --scheduler)
+
+
+@contextlib.contextmanager
+def scheduler_options(scheduler=None):
+    """Keyword arguments for ``dask.compute`` that run on `scheduler`.
+
+    ``None``: Dask's threads in this process. ``"local"``: a
+    ``distributed.LocalCluster`` of 2 single-threaded worker processes on
+    127.0.0.1, started here and closed on exit. Any other string: the address
+    of a running distributed scheduler (``tcp://host:8786``); a
+    ``distributed.Client`` is used as it is.
+    """
+    if scheduler is None:
+        yield {"scheduler": "threads"}
+        return
+    if not isinstance(scheduler, str):
+        yield {"scheduler": scheduler}
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise _usage("--scheduler needs the package 'distributed': pip install 'quatarray[dask]'") from None
+    cluster = None
+    if scheduler == "local":
+        cluster = LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+        )
+        address = cluster
+    else:
+        address = scheduler
+    try:
+        try:
+            client = Client(address, timeout="20s", set_as_default=False)
+        except OSError as exc:
+            raise _usage(f"--scheduler {scheduler}: cannot reach the scheduler ({exc})") from None
+        try:
+            yield {"scheduler": client}
+        finally:
+            client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+def _usage(msg):
+    from .io.errors import UsageError
+
+    return UsageError(msg)
+
+
+def _read_chunk(reader, a, b):
+    """Rows [a, b) of an ``.npy`` stream reader as a Chunk (only those pages mapped)."""
+    from .io.readers import _from_matrix, _reorder
+    from .io.streams import Chunk
+
+    block = reader._block(a, b)
+    if reader.dtype.kind != "f" or not reader.dtype.isnative:
+        block = block.astype(np.float64 if reader.dtype.kind != "f" else reader.dtype.newbyteorder("="))
+    if reader.core == (3, 3):
+        data = _from_matrix(block, reader, a)
+    else:
+        data = np.array(_reorder(block, reader.layout))
+    return Chunk(data, row0=a)
+
+
+def _write_rows(path, offset, dtype, core, row0, data):
+    """Write `data` as rows ``row0 …`` of the ``.npy`` file `path` (header already written)."""
+    rowbytes = math.prod(core) * np.dtype(dtype).itemsize
+    if len(data) == 0:
+        return 0
+    mm = np.memmap(path, dtype, "r+", offset=offset + row0 * rowbytes, shape=(len(data),) + tuple(core))
+    mm[...] = data
+    mm.flush()
+    del mm
+    return len(data)
+
+
+def _convert_task(reader, a, b, to, degrees, tmp, offset, dtype):
+    """Read, check, normalise, convert and write one block; returns the report figures."""
+    import warnings
+
+    from .cli import _target
+    from .io.clean import Cleaner
+
+    with _serial():
+        ch = _read_chunk(reader, a, b)
+        clean = Cleaner(reader, "error")
+        ch, _ = clean.check(ch)  # a bad row raises DataError naming its global row
+        _, core, fn = _target(to, degrees)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            out = np.asarray(fn(ch.data), dtype=dtype)
+        lock = any("gimbal" in str(c.message).lower() for c in caught)
+    _write_rows(tmp, offset, dtype, core, a, out)
+    return clean.normalised, clean.max_dev, lock
+
+
+class _NpyTarget:
+    """A temporary ``.npy`` beside `dst` with its header written; renamed over `dst` on success."""
+
+    def __init__(self, dst, shape, dtype):
+        import tempfile
+
+        self.dst = os.fspath(dst)
+        folder, base = os.path.split(os.path.abspath(self.dst))
+        fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
+        os.close(fd)
+        mm = np.lib.format.open_memmap(self.tmp, mode="w+", dtype=dtype, shape=tuple(shape))
+        self.offset = mm.offset
+        del mm
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if kind is None:
+            os.replace(self.tmp, self.dst)
+        elif os.path.exists(self.tmp):
+            os.remove(self.tmp)
+
+
+def _check_files(src, dst, force, what="IN"):
+    from .io.writers import check_output
+
+    if os.fspath(dst).endswith(".zarr") or os.fspath(src).endswith(".zarr"):
+        raise _usage("--scheduler: .zarr files are not supported yet; use .npy")
+    if not os.fspath(dst).endswith(".npy"):
+        raise _usage(f"{dst}: with --scheduler the output is written block by block to an .npy file")
+    check_output(dst, [src], force)
+
+
+def _blocks(rows, chunk):
+    chunk = int(chunk)
+    if chunk < 1:
+        raise _usage(f"--chunk must be at least 1, got {chunk}")
+    return [(a, min(a + chunk, rows)) for a in range(0, rows, chunk)]
+
+
+def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000, scheduler=None,
+                 force=False, err=None):
+    """``quatarray convert SRC DST --to TO --scheduler …``: an ``.npy`` stream converted block by block.
+
+    Every block of `chunk` rows is read from a memory map, checked (a
+    non-finite or zero quaternion, or a matrix that is not a rotation, is an
+    error naming its row), normalised, converted and written into its place
+    in DST by one task; DST appears (renamed from a temporary file beside
+    it) only when every block succeeded.
+
+    Parameters
+    ----------
+    src, dst : str or path-like
+        ``.npy`` files: SRC holds ``(N, 4)`` quaternions in `layout` order or
+        ``(N, 3, 3)`` rotation matrices.
+    to : {"quat", "xyzw", "matrix", "rotvec", "axis-angle", "euler:SEQ"}
+    degrees : bool
+    layout : {"wxyz", "xyzw"}
+    chunk : int
+        Rows per block (per task).
+    scheduler : None, "local", str or distributed.Client
+        See :func:`scheduler_options`. Workers must see SRC and DST at the
+        same paths (a shared file system on a real cluster).
+    force : bool
+        Overwrite an existing DST.
+    err : file, optional
+        Where the normalisation and gimbal-lock notes go (default stderr).
+
+    Returns
+    -------
+    int
+        0 (the command line's exit status).
+    """
+    from .cli import _target
+    from .io.readers import open_stream
+
+    err = sys.stderr if err is None else err
+    _check_files(src, dst, force)
+    _, core, _ = _target(to, degrees)  # a bad --to fails here, before any work
+    reader = open_stream(src, "npy", kind="quat", layout=layout or "wxyz", chunk=chunk)
+    dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
+    blocks = _blocks(reader.rows, chunk)
+    with _NpyTarget(dst, (reader.rows,) + tuple(core), dtype) as target:
+        tasks = [
+            dask.delayed(_convert_task, pure=False)(reader, a, b, to, degrees, target.tmp, target.offset, dtype)
+            for a, b in blocks
+        ]
+        with scheduler_options(scheduler) as opts:
+            figures = dask.compute(*tasks, **opts)
+    normalised = sum(f[0] for f in figures)
+    if normalised:
+        dev = max(f[1] for f in figures)
+        print(f"{reader.name}: normalised {normalised} non-unit quaternion{'s' if normalised != 1 else ''} "
+              f"(largest | |q| - 1 | = {dev:.3g})", file=err)
+    lock = sum(f[2] for f in figures)
+    if lock:
+        print(f"{reader.name}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there "
+              "(as scipy does)", file=err)
+    return 0
