@@ -1,0 +1,399 @@
+"""Euler angles: all 12 sequences, extrinsic (``"xyz"``) and intrinsic (``"XYZ"``).
+
+Quaternions are ``(..., 4)`` arrays in (w, x, y, z) order. The sequence
+string follows scipy: three letters from ``xyz``; lower case means
+extrinsic (rotations about the fixed axes), upper case intrinsic (about the
+moving axes); the two cannot be mixed and an axis may not follow itself.
+Six sequences are Tait–Bryan (three different axes, e.g. ``"xyz"``), six are
+proper Euler (first axis = last axis, e.g. ``"zxz"``).
+
+:func:`as_euler` works on the quaternion directly, by Bernardes & Viollet's
+general method ("Quaternion to Euler angles conversion: a direct, general
+and computationally efficient method", PLoS ONE 17(11), 2022), the method
+scipy uses, with scipy's angle ranges and gimbal-lock rule.
+
+Speed: both conversions are bound by trigonometry. libm's ``atan2``,
+``sin`` and ``cos`` are opaque calls that stop LLVM from vectorising a loop,
+so this module has its own branch-free ``atan2`` and ``sin``/``cos``
+(Cephes' rational and polynomial approximations, within 2 ulp in float64),
+and the loops read and write flat contiguous views (fixed strides 4 and 3),
+which LLVM turns into SIMD code.
+"""
+
+import math
+import warnings
+
+import numpy as np
+from numba import types
+from numba.extending import overload
+
+from . import _elements as E
+from ._jit import CACHE, element, like, prange, rowloop
+from ._validate import as_float, check_core, shape_error
+
+_ALLOWED = (
+    "Expected `seq` to be three axes from 'x', 'y', 'z' (lower case: extrinsic) or "
+    "'X', 'Y', 'Z' (upper case: intrinsic), not mixed, with no axis twice in a row: "
+    "one of the Tait-Bryan sequences 'xyz', 'xzy', 'yxz', 'yzx', 'zxy', 'zyx' or the "
+    "proper Euler sequences 'xyx', 'xzx', 'yxy', 'yzy', 'zxz', 'zyz' (or their upper-case "
+    "intrinsic versions)"
+)
+
+_GIMBAL = (
+    "Gimbal lock detected in {n} of {total} rotations. Setting third angle to zero "
+    "since it is not possible to uniquely determine all angles."
+)
+
+# --------------------------------------------------------------------------
+# vectorisable elementary functions
+
+# Cephes atan: atan(u) = u + u z P(z)/Q(z), z = u², for |u| <= tan(π/8).
+_AP = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
+       -1.228866684490136173410e2, -6.485021904942025371773e1)
+_AQ = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
+       4.853903996359136964868e2, 1.945506571482613964425e2)
+_TAN_PI_8 = 0.41421356237309504880
+_MOREBITS = 6.123233995736765886130e-17  # π/2 - float64(π/2)
+
+
+@element
+def atan2(y, x):
+    """atan2(y, x) without a libm call, so loops using it vectorise.
+
+    Same quadrants and signed zeros as ``math.atan2`` (nan in → nan out);
+    within 2 ulp of libm in float64. ``atan2(±inf, ±inf)`` gives nan.
+    """
+    zero = like(x, 0.0)
+    ax = abs(x)
+    ay = abs(y)
+    swap = ay > ax
+    mn = ax if swap else ay
+    mx = ay if swap else ax
+    # reduce min/max in [0, 1] to |u| <= tan(π/8): u = (t - 1)/(t + 1), atan(t) = π/4 + atan(u)
+    big = mn > like(x, _TAN_PI_8) * mx
+    num = mn - mx if big else mn
+    den = mn + mx if big else mx
+    u = num / den
+    u = zero if mx == zero else u
+    z = u * u
+    p = (((like(x, _AP[0]) * z + like(x, _AP[1])) * z + like(x, _AP[2])) * z + like(x, _AP[3])) * z + like(
+        x, _AP[4]
+    )
+    q = ((((z + like(x, _AQ[0])) * z + like(x, _AQ[1])) * z + like(x, _AQ[2])) * z + like(x, _AQ[3])) * z + like(
+        x, _AQ[4]
+    )
+    r = u + u * (z * p / q)
+    r = r + (like(x, math.pi / 4) + like(x, 0.5 * _MOREBITS) if big else zero)
+    r = (like(x, math.pi / 2) - r) + like(x, _MOREBITS) if swap else r
+    r = (like(x, math.pi) - r) + like(x, 2 * _MOREBITS) if math.copysign(like(x, 1.0), x) < zero else r
+    return math.copysign(r, y)
+
+
+# Cephes sin/cos on |r| <= π/4 after r = x - k π/2 (Cody–Waite, π/2 in three parts).
+_SIN = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
+        -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1)
+_COS = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
+        2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
+# (π/2 split, largest |x| the split reduces exactly) per float type
+_PIO2_64 = (2 * 7.85398125648498535156e-1, 2 * 3.77489470793079817668e-8, 2 * 2.69515142907905952645e-15, 1.0e6)
+_PIO2_32 = (2 * 0.78515625, 2 * 2.4187564849853515625e-4, 2 * 3.77489497744594108e-8, 8192.0)
+
+
+def _pio2_split(x):
+    """(π/2 in three parts, reduction limit) in the float type of ``x``."""
+    return _PIO2_64
+
+
+@overload(_pio2_split, jit_options={"cache": CACHE})
+def _pio2_split_impl(x):
+    if isinstance(x, types.Float):
+        c = _PIO2_32 if x.bitwidth == 32 else _PIO2_64
+        f = np.float32 if x.bitwidth == 32 else np.float64
+        c0, c1, c2, c3 = f(c[0]), f(c[1]), f(c[2]), f(c[3])
+
+        def impl(x):
+            return (c0, c1, c2, c3)
+
+        return impl
+
+
+@element
+def sincos(x):
+    """(sin x, cos x) without libm calls, for |x| up to the limit in ``_PIO2_*``
+    (1e6 in float64, 8192 in float32); larger |x| lose accuracy (see ``beyond``)."""
+    p1, p2, p3, _ = _pio2_split(x)
+    k = np.floor(x * like(x, 2 / math.pi) + like(x, 0.5))
+    r = ((x - k * p1) - k * p2) - k * p3
+    z = r * r
+    s = r + r * z * (
+        ((((like(x, _SIN[0]) * z + like(x, _SIN[1])) * z + like(x, _SIN[2])) * z + like(x, _SIN[3])) * z
+         + like(x, _SIN[4])) * z + like(x, _SIN[5])
+    )
+    c = (like(x, 1.0) - like(x, 0.5) * z) + z * z * (
+        ((((like(x, _COS[0]) * z + like(x, _COS[1])) * z + like(x, _COS[2])) * z + like(x, _COS[3])) * z
+         + like(x, _COS[4])) * z + like(x, _COS[5])
+    )
+    quadrant = np.int64(k) & 3
+    sn = c if (quadrant & 1) == 1 else s
+    cs = s if (quadrant & 1) == 1 else c
+    sn = -sn if quadrant >= 2 else sn
+    cs = -cs if quadrant == 1 or quadrant == 2 else cs
+    return sn, cs
+
+
+@element
+def beyond(x):
+    """True where |x| exceeds :func:`sincos`'s reduction limit (inf too, not nan)."""
+    return abs(x) > _pio2_split(x)[3]
+
+
+@element
+def wrap(a):
+    """Bring an angle in [-3π, 3π] into [-π, π] by one step of 2π, as scipy does."""
+    pi = like(a, math.pi)
+    a = a + like(a, 2 * math.pi) if a < -pi else a
+    return a - like(a, 2 * math.pi) if a > pi else a
+
+
+# --------------------------------------------------------------------------
+# batched loops
+#
+# The loops read and write flat views of C-contiguous arrays (fixed strides 4
+# and 3) and keep every per-row decision a select, so LLVM vectorises them.
+# Their bodies are written out in the loop rather than as one per-rotation
+# element function: LLVM does not inline a function that large, and a call
+# in the loop stops vectorisation (the small elements above are inlined).
+# Serial only: numba's parallel (parfor) version of these loops does not
+# vectorise and ran slower than the serial SIMD loop on this 2-core machine.
+
+
+@element
+def axis_quat(axis, s, c):
+    """(cos h, sin h along axis 0/1/2), built with selects."""
+    zero = like(s, 0.0)
+    return (c, s if axis == 0 else zero, s if axis == 1 else zero, s if axis == 2 else zero)
+
+
+@element
+def compose_axes(e0, e1, e2, intrinsic):
+    """Product of three elementary quaternions in scipy's order:
+    intrinsic (e0 e1) e2, extrinsic e2 (e1 e0)."""
+    if intrinsic:
+        return E.qmul(E.qmul(e0, e1), e2)
+    return E.qmul(e2, E.qmul(e1, e0))
+
+
+@rowloop(parallel=False)
+def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
+    """Bernardes & Viollet, row by row; returns the number of rows at gimbal lock.
+
+    ``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
+    the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan
+    else 0, ``sign`` the parity of (i, j, k), ``ext`` True for extrinsic,
+    ``lamb`` π/2 for Tait–Bryan else 0, ``scale`` 1 or 180/π.
+    """
+    n = q.shape[0]
+    qf = q.reshape(n * 4)
+    of = out.reshape(n * 3)
+    locked = 0
+    for r in prange(n):
+        w, x, y, z = qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]
+        one = like(w, 1.0)
+        zero = like(w, 0.0)
+        two = like(w, 2.0)
+        t = like(w, tb)
+        sg = like(w, sign)
+        qi = x if ci == 1 else (y if ci == 2 else z)
+        qj = x if cj == 1 else (y if cj == 2 else z)
+        qk = sg * (x if ck == 1 else (y if ck == 2 else z))
+        # step 1: permuted (for Tait–Bryan also rotated by π/2 about j) elements
+        a = w - t * qj
+        b = qi + t * qk
+        c = qj + t * w
+        d = qk - t * qi
+        h1 = math.sqrt(c * c + d * d)
+        h2 = math.sqrt(a * a + b * b)
+        # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
+        # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
+        # which is as sharp near π as near 0, also in float32.
+        mid = two * atan2(h1, h2)
+        tiny = like(w, 5e-8)
+        case1 = (h1 <= tiny * h2) & (h2 > zero)
+        case2 = (h2 <= tiny * h1) & (h1 > zero)  # excludes case1 (tiny² < 1)
+        lock = case1 | case2
+        nul = (h1 == zero) & (h2 == zero)  # zero quaternion → nan
+        # step 3: first and third angles; at gimbal lock scipy's rule: the
+        # third angle is 0 and the first carries the whole rotation
+        hs = atan2(b, a)
+        hd = atan2(d, c)
+        g = two * hs if case1 else (-two * hd if ext else two * hd)
+        u = hs - hd if not lock else (g if ext else zero)  # first angle slot
+        v = hs + hd if not lock else (zero if ext else g)  # third angle slot
+        v = v * (sg if tb == 1 else one)
+        nan = like(w, math.nan)
+        s = like(w, scale)
+        of[3 * r] = nan if nul else wrap(u if ext else v) * s
+        of[3 * r + 1] = nan if nul else wrap(mid - like(w, lamb)) * s
+        of[3 * r + 2] = nan if nul else wrap(v if ext else u) * s
+        locked += np.int64(lock)
+    return locked
+
+
+@rowloop(parallel=False)
+def _from_euler(angles, a0, a1, a2, intrinsic, unit, out):
+    """q = product of the three axis rotations; returns the number of rows that
+    needed libm (half angles beyond the fast sin/cos range, or inf)."""
+    n = angles.shape[0]
+    af = angles.reshape(n * 3)
+    of = out.reshape(n * 4)
+    far = 0
+    for r in prange(n):
+        k = like(af[3 * r], unit) * like(af[3 * r], 0.5)
+        h0 = af[3 * r] * k
+        h1 = af[3 * r + 1] * k
+        h2 = af[3 * r + 2] * k
+        s0, c0 = sincos(h0)
+        s1, c1 = sincos(h1)
+        s2, c2 = sincos(h2)
+        e0 = axis_quat(a0, s0, c0)
+        e1 = axis_quat(a1, s1, c1)
+        e2 = axis_quat(a2, s2, c2)
+        # compose_axes, written out so the loop vectorises
+        qw, qx, qy, qz = E.qmul(E.qmul(e0, e1), e2) if intrinsic else E.qmul(e2, E.qmul(e1, e0))
+        of[4 * r] = qw
+        of[4 * r + 1] = qx
+        of[4 * r + 2] = qy
+        of[4 * r + 3] = qz
+        far += np.int64(beyond(h0) | beyond(h1) | beyond(h2))
+    if far > 0:
+        for r in prange(n):
+            k = like(af[3 * r], unit) * like(af[3 * r], 0.5)
+            h0 = af[3 * r] * k
+            h1 = af[3 * r + 1] * k
+            h2 = af[3 * r + 2] * k
+            if beyond(h0) or beyond(h1) or beyond(h2):
+                e0 = axis_quat(a0, np.sin(h0), np.cos(h0))
+                e1 = axis_quat(a1, np.sin(h1), np.cos(h1))
+                e2 = axis_quat(a2, np.sin(h2), np.cos(h2))
+                E.store4(out, r, compose_axes(e0, e1, e2, intrinsic))
+    return far
+
+
+# --------------------------------------------------------------------------
+# public functions
+
+
+def _parse_seq(seq):
+    """``seq`` → (axis indices 0..2 in the given order, intrinsic)."""
+    if not isinstance(seq, str):
+        raise TypeError(f"{_ALLOWED}; got {type(seq).__name__} {seq!r}.")
+    if (
+        len(seq) != 3
+        or not (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
+        or seq[0] == seq[1]
+        or seq[1] == seq[2]
+    ):
+        raise ValueError(f"{_ALLOWED}; got {seq!r}.")
+    return ["xyz".index(ch) for ch in seq.lower()], seq.isupper()
+
+
+def _rows(a, core):
+    """``a`` as a C-contiguous ``(n,) + core`` array (a copy only when ``a`` is strided)."""
+    return np.ascontiguousarray(a.reshape((-1,) + core))
+
+
+def as_euler(q, seq, degrees=False, suppress_warnings=False):
+    """Euler angles of rotation quaternions, as scipy's ``Rotation.as_euler``.
+
+    Computed from the quaternion directly (Bernardes & Viollet), for any
+    non-zero scale of `q` (no normalising needed; a zero quaternion gives nan).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternions (w, x, y, z).
+    seq : str
+        Three axes: ``"xyz"``-style lower case for extrinsic rotations,
+        ``"XYZ"``-style upper case for intrinsic ones (not mixed); 6 Tait–Bryan
+        sequences (``"xyz"``, ``"zyx"``, …) and 6 proper Euler ones (``"zxz"``, …).
+    degrees : bool, optional
+        Return degrees instead of radians.
+    suppress_warnings : bool, optional
+        Do not warn at gimbal lock.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Angles in the order of `seq`. First and third in [-π, π]; the second
+        in [-π/2, π/2] for Tait–Bryan and [0, π] for proper Euler sequences.
+
+    Warns
+    -----
+    UserWarning
+        At most once per call, when any rotation is at gimbal lock (the second
+        angle within 1e-7 rad of its singular values). There the third angle
+        is set to 0 and the first carries the whole rotation about the
+        (then aligned) first and third axes, as scipy does.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q = qa.from_euler("zyx", [90, 30, 10], degrees=True)
+    >>> np.round(qa.as_euler(q, "zyx", degrees=True), 9)
+    array([90., 30., 10.])
+    >>> np.round(qa.as_euler([1, 0, 0, 0], "ZXZ"), 9)
+    array([0., 0., 0.])
+    """
+    axes, intrinsic = _parse_seq(seq)
+    a = check_core(as_float(q, "q"), "q", (4,))
+    i, j, k = axes if not intrinsic else axes[::-1]
+    tait_bryan = i != k
+    if not tait_bryan:
+        k = 3 - i - j
+    sign = (i - j) * (j - k) * (k - i) // 2
+    flat = _rows(a, (4,))
+    out = np.empty((flat.shape[0], 3), a.dtype)
+    scale = 180.0 / math.pi if degrees else 1.0
+    lamb = math.pi / 2 if tait_bryan else 0.0
+    locked = _as_euler(flat, i + 1, j + 1, k + 1, int(tait_bryan), sign, not intrinsic, lamb, scale, out)
+    if locked and not suppress_warnings:
+        warnings.warn(_GIMBAL.format(n=locked, total=flat.shape[0]), UserWarning, stacklevel=2)
+    return out.reshape(a.shape[:-1] + (3,))
+
+
+def from_euler(seq, angles, degrees=False):
+    """Rotation quaternions from Euler angles, as scipy's ``Rotation.from_euler``.
+
+    Parameters
+    ----------
+    seq : str
+        Three axes, lower case extrinsic or upper case intrinsic (see
+        :func:`as_euler`).
+    angles : array_like, shape (..., 3)
+        Angles in the order of `seq`; any leading shape.
+    degrees : bool, optional
+        `angles` are in degrees.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit quaternions (w, x, y, z): for ``"XYZ"`` (intrinsic) the product
+        q_x(a) q_y(b) q_z(c); for ``"xyz"`` (extrinsic) q_z(c) q_y(b) q_x(a).
+        The sign is scipy's (compare rotations with :func:`distance`).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.from_euler("xyz", [0, 0, 180], degrees=True), 12)
+    array([0., 0., 0., 1.])
+    >>> qa.from_euler("ZYX", np.zeros((2, 5, 3))).shape
+    (2, 5, 4)
+    """
+    axes, intrinsic = _parse_seq(seq)
+    a = as_float(angles, "angles")
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise shape_error("angles", "(..., 3)", a.shape)
+    flat = _rows(a, (3,))
+    out = np.empty((flat.shape[0], 4), a.dtype)
+    _from_euler(flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out)
+    return out.reshape(a.shape[:-1] + (4,))
