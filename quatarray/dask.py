@@ -646,3 +646,309 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
         print(f"{reader.name}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there "
               "(as scipy does)", file=err)
     return 0
+
+
+# --------------------------------------------------------------------------
+# neighbours across chunk borders: spline and angular_velocity
+
+
+def _concat_rows(parts):
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+def _window(x, a, b):
+    """A task expression for rows [a, b) of `x` (chunked along axis 0 only), across its blocks."""
+    starts = np.cumsum((0,) + x.chunks[0])
+    first = int(np.searchsorted(starts, a, side="right")) - 1
+    parts = []
+    for i in range(first, len(x.chunks[0])):
+        lo, hi = starts[i], starts[i + 1]
+        if lo >= b:
+            break
+        key = (x.name, i) + (0,) * (x.ndim - 1)
+        if a <= lo and hi <= b:
+            parts.append(key)
+        else:
+            parts.append((operator.getitem, key, slice(max(a, lo) - lo, min(b, hi) - lo)))
+    return (_concat_rows, parts)
+
+
+def _materialise(x, name):
+    """A 1-D float64 numpy array of `x` (a Dask array is computed: times are small next to keys)."""
+    if isinstance(x, da.Array):
+        x = x.compute()
+    a = as_float(x, name, np.float64)
+    if a.ndim != 1:
+        raise ValueError(f"Expected `{name}` to have shape (N,), got {a.shape}.")
+    return a
+
+
+def _spline_task(times, keys, new_times, method):
+    with _serial():
+        return qa.spline(times, keys, new_times, method=method)
+
+
+def _check_spline_times(t, nt, k):
+    if t.shape[0] != k:
+        raise ValueError(f"Expected `times` to have shape ({k},) like `keys`, got {t.shape}.")
+    if k < 2:
+        raise ValueError(f"Expected at least 2 keys, got {k}.")
+    d = np.diff(t)
+    if not np.all(d > 0):
+        i = int(np.argmin(d > 0)) + 1
+        raise ValueError(f"Expected `times` to be strictly increasing; times[{i}] = {t[i]!r} after {t[i - 1]!r}.")
+    bad = ~((nt >= t[0]) & (nt <= t[-1]))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"Expected `new_times` inside [{t[0]!r}, {t[-1]!r}]; new_times[{i}] = {nt[i]!r} is outside."
+        )
+
+
+def _output_chunks(nt, t, key_chunks, chunks, given):
+    """Row boundaries of the output blocks."""
+    m = nt.shape[0]
+    if given is not None:
+        sizes = list(given)
+    elif chunks is not None:
+        sizes = [min(int(chunks), m - a) for a in range(0, m, int(chunks))]
+    elif m and np.all(np.diff(nt) >= 0):
+        # one output block per key block: new times split where the key blocks start
+        starts = np.cumsum((0,) + tuple(key_chunks))[1:-1]
+        cuts = np.searchsorted(nt, t[starts], side="left")
+        edges = np.unique(np.concatenate(([0], cuts, [m])))
+        sizes = list(np.diff(edges))
+    else:
+        per = max(1, -(-m // max(1, len(key_chunks))))
+        sizes = [min(per, m - a) for a in range(0, m, per)]
+    return [int(s) for s in sizes if s > 0] or [0]
+
+
+def spline(times, keys, new_times, method="bezier", chunks=None):
+    """Dask version of :func:`quatarray.spline`: resample a key stream, lazily in the keys.
+
+    The keys (``(K, 4)``, chunked along K) are unflipped across the whole
+    stream first (the prefix scan of :func:`unflip`); then each output block
+    runs the in-memory :func:`quatarray.spline` on the new times it holds and
+    the keys its segments need — one key before and two after, taken across
+    chunk borders — so it equals the in-memory result (to rounding) whatever
+    the chunking.
+
+    `times` and `new_times` are the plan: 1-D, small next to the keys, and
+    read when this function is called (Dask arrays are computed for them).
+    Their errors (times not strictly increasing, new times outside the keys'
+    span) are raised here.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+    keys : Dask array or array_like, shape (K, 4)
+    new_times : array_like, shape (M,)
+    method : {"bezier", "slerp", "nlerp", "squad"}
+    chunks : int, optional
+        Rows per output block. Default: the chunks of `new_times` when it is
+        a Dask array, else one output block per key block.
+
+    Returns
+    -------
+    dask.array.Array, shape (M, 4)
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, quatarray as qa, quatarray.dask as qd
+    >>> t = np.arange(40.0)
+    >>> keys = qa.from_rotvec(np.c_[np.sin(t / 5), np.cos(t / 7), t / 9])
+    >>> nt = np.linspace(0, 39, 500)
+    >>> lazy = qd.spline(t, da.from_array(keys, chunks=(7, 4)), nt)
+    >>> np.allclose(lazy.compute(), qa.spline(t, keys, nt), rtol=0, atol=1e-13)
+    True
+    """
+    given = new_times.chunks[0] if isinstance(new_times, da.Array) else None
+    t = _materialise(times, "times")
+    nt = _materialise(new_times, "new_times")
+    x = as_dask(keys, "keys", Q)
+    if x.ndim != 2:
+        raise ValueError(f"Expected `keys` to have shape (K, 4), got {tuple(x.shape)}.")
+    if method not in ("bezier", "slerp", "nlerp", "squad"):
+        raise ValueError(f"Expected `method` to be one of 'bezier', 'slerp', 'nlerp', 'squad', got {method!r}.")
+    k = x.shape[0]
+    _check_spline_times(t, nt, k)
+    x = x.astype(as_float(np.empty(0, x.dtype), "keys").dtype)
+    u = unflip(x)
+    dtype = qa.spline(t[:2], np.array([[1, 0, 0, 0], [0, 1, 0, 0]], x.dtype), t[:1], method=method).dtype
+    sizes = _output_chunks(nt, t, x.chunks[0], chunks, given)
+    token = tokenize("spline", t, u, nt, method, sizes)
+    name = f"spline-{token}"
+    dsk = {}
+    a = 0
+    for j, n in enumerate(sizes):
+        part = nt[a : a + n]
+        if n == 0:
+            dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
+            continue
+        seg = np.clip(np.searchsorted(t, part, side="right") - 1, 0, k - 2)
+        w0, w1 = max(0, int(seg.min()) - 1), min(k, int(seg.max()) + 3)
+        dsk[(name, j, 0)] = (_spline_task, t[w0:w1], _window(u, w0, w1), part, method)
+        a += n
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[u])
+    return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
+
+
+def _angular_velocity_task(q, times, frame, lo, hi):
+    with _serial():
+        return qa.angular_velocity(q, times, frame=frame)[lo:hi]
+
+
+_AV_DEPTH = 2  # rows of neighbours each side that angular_velocity's differences can reach
+
+
+def angular_velocity(q, times, frame="space"):
+    """Dask version of :func:`quatarray.angular_velocity`: ``(N, 3)`` rad/s, block by block.
+
+    Each block is computed by the in-memory function on its rows plus
+    neighbouring rows across the chunk borders (taken from the adjacent
+    blocks, however small), and trimmed: the same numbers as in memory,
+    whatever the chunking. `times` may be a Dask array (it is rechunked like
+    `q`) or a numpy array.
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, quatarray as qa, quatarray.dask as qd
+    >>> t = np.linspace(0, 1, 50)
+    >>> q = qa.from_rotvec(np.c_[0 * t, 0 * t, 2 * t])  # 2 rad/s about z
+    >>> w = qd.angular_velocity(da.from_array(q, chunks=(8, 4)), t).compute()
+    >>> np.allclose(w, [0, 0, 2])
+    True
+    """
+    x = as_dask(q, "q", Q)
+    if x.ndim != 2:
+        raise ValueError(f"Expected `q` to have shape (N, 4), got {tuple(x.shape)}.")
+    if frame not in ("space", "body"):
+        raise ValueError(f"Expected `frame` to be 'space' or 'body', got {frame!r}.")
+    tt = times if isinstance(times, da.Array) else da.from_array(as_float(times, "times", np.float64))
+    if tt.ndim != 1 or tt.shape[0] != x.shape[0]:
+        raise ValueError(f"Expected `times` to have shape ({x.shape[0]},) like `q`, got {tuple(tt.shape)}.")
+    tt = tt.rechunk((x.chunks[0],))
+    dtype = as_float(np.empty(0, x.dtype), "q").dtype
+    n = x.shape[0]
+    token = tokenize("angular_velocity", x, tt, frame)
+    name = f"angular_velocity-{token}"
+    dsk = {}
+    a = 0
+    for j, size in enumerate(x.chunks[0]):
+        b = a + size
+        w0, w1 = max(0, a - _AV_DEPTH), min(n, b + _AV_DEPTH)
+        dsk[(name, j, 0)] = (
+            _angular_velocity_task, _window(x, w0, w1), _window(tt, w0, w1), frame, a - w0, b - w0
+        )
+        a = b
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x, tt])
+    return da.Array(graph, name, chunks=(x.chunks[0], (3,)), meta=np.empty((0, 0), dtype))
+
+
+# --------------------------------------------------------------------------
+# resample_file
+
+
+def _read_keys_task(reader, a, b):
+    """Rows [a, b) of an ``.npy`` key stream, checked and normalised as the command line does."""
+    from .io.clean import Cleaner
+
+    with _serial():
+        clean = Cleaner(reader, "error")
+        ch, _ = clean.check(_read_chunk(reader, a, b))
+    return ch.data
+
+
+def _lazy_npy_keys(reader, chunk):
+    """An ``.npy`` quaternion stream as a Dask array read (and checked) by the workers."""
+    dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
+    blocks = _blocks(reader.rows, chunk)
+    name = "read-keys-" + tokenize(reader.path, os.path.getmtime(reader.path), reader.layout, blocks)
+    dsk = {(name, i, 0): (_read_keys_task, reader, a, b) for i, (a, b) in enumerate(blocks)}
+    chunks = (tuple(b - a for a, b in blocks), (4,))
+    return da.Array(HighLevelGraph.from_collections(name, dsk, dependencies=[]), name, chunks, meta=np.empty((0, 0), dtype))
+
+
+def _write_block(path, offset, dtype, core, row0, data):
+    return np.array([_write_rows(path, offset, dtype, core, row0, data)])
+
+
+def _store_npy(x, target):
+    """A lazy array of row counts whose tasks write every block of `x` into its rows of `target`."""
+    starts = np.cumsum((0,) + x.chunks[0])
+    keys = list(_flatten_keys(x.__dask_keys__()))
+    name = "store-" + tokenize(x, target.tmp)
+    dsk = {
+        (name, i): (_write_block, target.tmp, target.offset, x.dtype, x.shape[1:], int(starts[i]), k)
+        for i, k in enumerate(keys)
+    }
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x])
+    return da.Array(graph, name, chunks=((1,) * len(keys),), meta=np.empty(0, np.int64))
+
+
+def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_000_000, scheduler=None,
+                  in_rate=None, layout=None, force=False, err=None):
+    """``quatarray resample SRC DST (--rate HZ | --times FILE) --scheduler …`` on Dask workers.
+
+    The keys are checked (bad rows are errors naming the row), normalised and
+    unflipped across the whole stream; the new times are those of the command
+    line (``t0 + k/rate`` up to the last key time, or a file of times inside
+    the keys' span); every output block of about `chunk` rows is
+    interpolated with :func:`spline` by one task and written into its rows
+    of the ``.npy`` DST (renamed from a temporary file when all succeeded).
+
+    An ``.npy`` SRC has no times: give its sampling rate as `in_rate` (key k
+    at k / in_rate seconds); its blocks are read by the workers. Other
+    formats (csv, tum, euroc, parquet, bvh) are read on the client.
+
+    Returns
+    -------
+    int
+        0 (the command line's exit status).
+    """
+    from .cli import _FileTimes, _RateTimes
+    from .io.clean import Cleaner
+    from .io.errors import DataError
+    from .io.readers import open_stream
+    from .io.streams import concat
+
+    if (rate is None) == (times is None):
+        raise _usage("resample needs exactly one of --rate and --times")
+    _check_files(src, dst, force)
+    if times is not None:
+        from .io.writers import check_output
+
+        check_output(dst, [times], True)  # DST must not be the times file
+    newt = _RateTimes(rate) if rate is not None else _FileTimes(times, "auto")
+    reader = open_stream(src, "auto", kind="quat", layout=layout, chunk=chunk)
+    if not reader.has_time and in_rate is None:
+        raise _usage(f"{reader.name}: has no time column; give its sampling rate with --in-rate HZ")
+    if in_rate is not None and not (in_rate > 0 and np.isfinite(in_rate)):
+        raise _usage(f"--in-rate must be positive, got {in_rate}")
+    if reader.format == "npy":
+        keys = _lazy_npy_keys(reader, chunk)
+        t = np.arange(reader.rows, dtype=np.float64) / in_rate
+    else:
+        clean = Cleaner(reader, "error", ordered=True)
+        chunks = [clean(ch) for ch in reader]
+        whole = concat([c for c in chunks if len(c)])
+        keys = da.from_array(whole.data, chunks=(int(chunk), 4))
+        t = whole.t if whole.t is not None else (np.arange(len(whole.data)) / in_rate)
+        clean.report(sys.stderr if err is None else err)
+    if t.shape[0] < 2:
+        raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
+    newt.t0 = float(t[0])
+    nt = newt.upto(float(t[-1]), True)
+    newt.finish(float(t[-1]))
+    if nt.size == 0:
+        raise DataError(f"{reader.name}: no new times inside the keys' span")
+    try:
+        lazy = spline(t, keys, nt, method=method, chunks=chunk)
+    except ValueError as exc:
+        raise DataError(f"{reader.name}: {exc}") from None
+    with _NpyTarget(dst, lazy.shape, lazy.dtype) as target:
+        written = _store_npy(lazy, target).sum()
+        with scheduler_options(scheduler) as opts:
+            dask.compute(written, **opts)
+    return 0
