@@ -1,0 +1,870 @@
+"""Interpolation of unit quaternions (Shoemake): lerp, slerp, spherical Bézier
+curves, squad, and resampling of timestamped key streams.
+
+Quaternions are ``(..., 4)`` arrays in (w, x, y, z) order, Hamilton algebra.
+Leading dimensions broadcast like numpy; float32 stays float32, float64 stays
+float64, mixed gives float64.
+
+Every slerp here uses the angle θ = 2·atan2(|p − q|, |p + q|) (accurate for
+identical, nearly identical and antipodal pairs, never an arccos) and the
+weights sin((1 − t)θ)/sin θ and sin(tθ)/sin θ, with sin θ = 2ab/(a² + b²)
+from the two chord lengths a = |p − q|, b = |p + q|. The trigonometry is the
+branch-free polynomial code of :mod:`quatarray._trig`, so the row loops run as
+SIMD code. t = 0 and t = 1 give p and q exactly. θ = 0 gives the linear
+blend; an exactly antipodal pair with ``shortest=False`` (no unique arc)
+follows p ⊗ (cos tπ, sin tπ, 0, 0), the convention of :func:`quatarray.power`.
+"""
+
+import math
+
+import numpy as np
+
+from . import _elements as E
+from ._jit import kernel, like, prange, rowloop
+from ._trig import half_arc, inline, sincos
+from ._validate import as_float, check_core, elementwise, shape_error
+
+Q = (4,)
+BLOCK = 2048  # samples per block of the segment search
+
+# --------------------------------------------------------------------------
+# element functions (inlined so the row loops vectorise)
+
+
+@inline
+def arc(p, q):
+    """(θ, sin θ, antipodal) of the great arc from unit p to unit q.
+
+    θ = 2 atan2(|p − q|, |p + q|) ∈ [0, π]; sin θ = 2ab/(a² + b²);
+    antipodal is 1 exactly when p = −q (b = 0), else 0.
+    """
+    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
+    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
+    m2 = dw * dw + dx * dx + dy * dy + dz * dz
+    p2 = sw * sw + sx * sx + sy * sy + sz * sz
+    a = np.sqrt(m2)
+    b = np.sqrt(p2)
+    two = like(a, 2.0)
+    th = two * half_arc(a, b)
+    st = two * a * b / (m2 + p2)
+    anti = like(a, 1.0) if b == like(a, 0.0) else like(a, 0.0)
+    return th, st, anti
+
+
+@inline
+def arc_weights(th, st, anti, t):
+    """(w0, w1, w2) with slerp = w0 p + w1 q + w2 (p ⊗ i) on an arc from :func:`arc`."""
+    one = like(t, 1.0)
+    zero = like(t, 0.0)
+    s1, c1 = sincos(t * th)
+    s0, c0 = sincos((one - t) * th)
+    w0 = s0 / st
+    w1 = s1 / st
+    w2 = zero
+    if th == zero:  # identical: the linear blend (the limit of the weights)
+        w0 = one - t
+        w1 = t
+    if anti > zero:  # p = −q: the arc through p ⊗ i
+        w0 = c1
+        w1 = zero
+        w2 = s1
+    if t == zero:
+        w0 = one
+        w1 = zero
+        w2 = zero
+    if t == one:
+        w0 = zero
+        w1 = one
+        w2 = zero
+    return w0, w1, w2
+
+
+@inline
+def combine(p, q, w):
+    """w0 p + w1 q + w2 (p ⊗ i), with p ⊗ i = (−x, w, z, −y)."""
+    w0, w1, w2 = w
+    return (
+        w0 * p[0] + w1 * q[0] - w2 * p[1],
+        w0 * p[1] + w1 * q[1] + w2 * p[0],
+        w0 * p[2] + w1 * q[2] + w2 * p[3],
+        w0 * p[3] + w1 * q[3] - w2 * p[2],
+    )
+
+
+@inline
+def hemisphere(p, q, shortest):
+    """q, or −q when `shortest` and p·q < 0 (same rotation, shorter arc)."""
+    d = p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
+    neg = shortest & (d < like(d, 0.0))
+    s = like(d, -1.0) if neg else like(d, 1.0)
+    return (s * q[0], s * q[1], s * q[2], s * q[3])
+
+
+@inline
+def slerp4(p, q, t):
+    """Great-arc interpolation of unit p and q at t (no hemisphere flip)."""
+    th, st, anti = arc(p, q)
+    return combine(p, q, arc_weights(th, st, anti, t))
+
+
+@inline
+def casteljau_tail(p01, p12, p23, t):
+    """The last two de Casteljau levels (three slerps) of a spherical Bézier."""
+    p012 = slerp4(p01, p12, t)
+    p123 = slerp4(p12, p23, t)
+    return slerp4(p012, p123, t)
+
+
+@inline
+def bezier4(q0, a, b, q1, t):
+    """Spherical cubic Bézier by de Casteljau: six slerps."""
+    return casteljau_tail(slerp4(q0, a, t), slerp4(a, b, t), slerp4(b, q1, t), t)
+
+
+@inline
+def squad4(q0, s0, s1, q1, t):
+    """Shoemake's squad: slerp(slerp(q0, q1, t), slerp(s0, s1, t), 2t(1 − t))."""
+    h = like(t, 2.0) * t * (like(t, 1.0) - t)
+    return slerp4(slerp4(q0, q1, t), slerp4(s0, s1, t), h)
+
+
+@inline
+def ld4(a, i):
+    return (a[i, 0], a[i, 1], a[i, 2], a[i, 3])
+
+
+@inline
+def st4flat(o, i, q):
+    # a store through a flat index: LLVM vectorises it, a 2-D store it does not
+    j = 4 * i
+    o[j] = q[0]
+    o[j + 1] = q[1]
+    o[j + 2] = q[2]
+    o[j + 3] = q[3]
+
+
+# --------------------------------------------------------------------------
+# batched loops. Quaternion outputs are flat (4n,) views (see `_flat`).
+
+
+@rowloop
+def _slerp(p, q, t, shortest, out):
+    for i in prange(p.shape[0]):
+        pi = ld4(p, i)
+        st4flat(out, i, slerp4(pi, hemisphere(pi, ld4(q, i), shortest), t[i]))
+
+
+@rowloop
+def _nlerp(p, q, t, shortest, out):
+    for i in prange(p.shape[0]):
+        pi = ld4(p, i)
+        qi = hemisphere(pi, ld4(q, i), shortest)
+        s = like(t, 1.0) - t[i]
+        st4flat(out, i, E.qnormalize((s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
+                                      s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3])))
+
+
+@rowloop
+def _lerp(p, q, t, out):
+    for i in prange(p.shape[0]):
+        pi = ld4(p, i)
+        qi = ld4(q, i)
+        s = like(t, 1.0) - t[i]
+        st4flat(out, i, (s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
+                         s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3]))
+
+
+@inline
+def double4(p, q):
+    """Shoemake's Double: 2(p·q)q − p."""
+    d2 = like(p[0], 2.0) * (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
+    return (d2 * q[0] - p[0], d2 * q[1] - p[1], d2 * q[2] - p[2], d2 * q[3] - p[3])
+
+
+@inline
+def bisect4(p, q):
+    """Shoemake's Bisect: (p + q)/|p + q|."""
+    s = (p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3])
+    n = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + s[3] * s[3])
+    return (s[0] / n, s[1] / n, s[2] / n, s[3] / n)
+
+
+@rowloop
+def _double(p, q, out):
+    for i in prange(p.shape[0]):
+        st4flat(out, i, double4(ld4(p, i), ld4(q, i)))
+
+
+@rowloop
+def _bisect(p, q, out):
+    for i in prange(p.shape[0]):
+        st4flat(out, i, bisect4(ld4(p, i), ld4(q, i)))
+
+
+@rowloop
+def _bezier(q0, a, b, q1, t, out):
+    for i in prange(q0.shape[0]):
+        st4flat(out, i, bezier4(ld4(q0, i), ld4(a, i), ld4(b, i), ld4(q1, i), t[i]))
+
+
+@rowloop
+def _squad(q0, s0, s1, q1, t, out):
+    for i in prange(q0.shape[0]):
+        st4flat(out, i, squad4(ld4(q0, i), ld4(s0, i), ld4(s1, i), ld4(q1, i), t[i]))
+
+
+@kernel
+def _controls(q, f_out, f_in, a, b):
+    """Shoemake's control points with the one-third step and tangent scaling.
+
+    Interior n: â = bisect(double(q[n−1], q[n]), q[n+1]); a = slerp(q[n], â, 1/3);
+    b = double(a, q[n]); then a ← slerp(q[n], a, f_out[n]), b ← slerp(q[n], b, f_in[n]).
+    Ends: a[0] = slerp(q[0], q[1], 1/3), b[K−1] = slerp(q[K−1], q[K−2], 1/3) and
+    the other control of an end key is its reflection (Double) through the key.
+    """
+    k = q.shape[0]
+    third = like(f_out, 1.0) / like(f_out, 3.0)
+    for n in range(k):
+        qn = ld4(q, n)
+        if n == 0:
+            an = slerp4(qn, ld4(q, 1), third)
+            bn = double4(an, qn)
+        elif n == k - 1:
+            bn = slerp4(qn, ld4(q, n - 1), third)
+            an = double4(bn, qn)
+        else:
+            ah = bisect4(double4(ld4(q, n - 1), qn), ld4(q, n + 1))
+            an = slerp4(qn, ah, third)
+            bn = double4(an, qn)
+            an = slerp4(qn, an, f_out[n])
+            bn = slerp4(qn, bn, f_in[n])
+        E.store4(a, n, an)
+        E.store4(b, n, bn)
+
+
+@kernel
+def _unflip(q, out):
+    # q, out: (K, M, 4); the sign scan runs along axis 0 for each of the M columns.
+    for m in range(q.shape[1]):
+        prev = (q[0, m, 0], q[0, m, 1], q[0, m, 2], q[0, m, 3])
+        out[0, m, 0], out[0, m, 1], out[0, m, 2], out[0, m, 3] = prev
+        for k in range(1, q.shape[0]):
+            cur = (q[k, m, 0], q[k, m, 1], q[k, m, 2], q[k, m, 3])
+            if E.qdot(cur, prev) < like(q, 0.0):
+                cur = E.qneg(cur)
+            out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = cur
+            prev = cur
+
+
+# ---- spline: per-segment tables, segment search, batched evaluation ----
+
+
+@kernel
+def _arcs(p, q, seg, col):
+    """seg[n, col:col+3] = arc(p[n], q[n])."""
+    for n in range(p.shape[0]):
+        th, st, anti = arc(ld4(p, n), ld4(q, n))
+        seg[n, col] = th
+        seg[n, col + 1] = st
+        seg[n, col + 2] = anti
+
+
+@rowloop(rows=1)
+def _locate(times, new_t, idx, u):
+    """Segment n of every sample (times[n] ≤ t ≤ times[n+1], n ≤ K−2) and u ∈ [0, 1].
+
+    Binary search, started by an exponential search from the previous sample's
+    segment, so sorted samples cost O(1) each and any order O(log K).
+    """
+    k = times.shape[0]
+    m = new_t.shape[0]
+    nblk = (m + BLOCK - 1) // BLOCK
+    for blk in prange(nblk):
+        n = 0
+        for j in range(blk * BLOCK, min(m, (blk + 1) * BLOCK)):
+            t = new_t[j]
+            lo = n if times[n] <= t else 0  # invariant: times[lo] <= t
+            step = 1
+            hi = lo + 1
+            while hi < k - 1 and times[hi] <= t:
+                lo = hi
+                step *= 2
+                hi = lo + step
+            if hi > k - 1:
+                hi = k - 1
+            while hi - lo > 1:  # invariant: times[lo] <= t, hi == k-1 or times[hi] > t
+                mid = (lo + hi) >> 1
+                if times[mid] <= t:
+                    lo = mid
+                else:
+                    hi = mid
+            n = lo
+            idx[j] = n
+            u[j] = (t - times[n]) / (times[n + 1] - times[n])
+
+
+@inline
+def seg_arc(seg, n, c):
+    return seg[n, c], seg[n, c + 1], seg[n, c + 2]
+
+
+# Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
+# 12-15 q_{n+1}, then (θ, sin θ, antipodal) of fixed arcs from 16 on.
+
+
+@rowloop(rows=1)
+def _eval_slerp(seg, idx, u, out):
+    for j in prange(idx.shape[0]):
+        n = idx[j]
+        p = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
+        q = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
+        th, st, anti = seg_arc(seg, n, 16)
+        st4flat(out, j, combine(p, q, arc_weights(th, st, anti, u[j])))
+
+
+@rowloop(rows=1)
+def _eval_nlerp(seg, idx, u, out):
+    for j in prange(idx.shape[0]):
+        n = idx[j]
+        t = u[j]
+        s = like(t, 1.0) - t
+        r = (s * seg[n, 0] + t * seg[n, 12], s * seg[n, 1] + t * seg[n, 13],
+             s * seg[n, 2] + t * seg[n, 14], s * seg[n, 3] + t * seg[n, 15])
+        nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+        st4flat(out, j, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
+
+
+@rowloop(rows=1)
+def _eval_bezier(seg, idx, u, out):
+    for j in prange(idx.shape[0]):
+        n = idx[j]
+        t = u[j]
+        q0 = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
+        a = (seg[n, 4], seg[n, 5], seg[n, 6], seg[n, 7])
+        b = (seg[n, 8], seg[n, 9], seg[n, 10], seg[n, 11])
+        q1 = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
+        # level 1 on the three fixed control arcs: only the weights per sample
+        th, st, anti = seg_arc(seg, n, 16)
+        p01 = combine(q0, a, arc_weights(th, st, anti, t))
+        th, st, anti = seg_arc(seg, n, 19)
+        p12 = combine(a, b, arc_weights(th, st, anti, t))
+        th, st, anti = seg_arc(seg, n, 22)
+        p23 = combine(b, q1, arc_weights(th, st, anti, t))
+        st4flat(out, j, casteljau_tail(p01, p12, p23, t))
+
+
+@rowloop(rows=1)
+def _eval_squad(seg, idx, u, out):
+    for j in prange(idx.shape[0]):
+        n = idx[j]
+        t = u[j]
+        q0 = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
+        s0 = (seg[n, 4], seg[n, 5], seg[n, 6], seg[n, 7])
+        s1 = (seg[n, 8], seg[n, 9], seg[n, 10], seg[n, 11])
+        q1 = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
+        th, st, anti = seg_arc(seg, n, 16)
+        pq = combine(q0, q1, arc_weights(th, st, anti, t))
+        th, st, anti = seg_arc(seg, n, 19)
+        ps = combine(s0, s1, arc_weights(th, st, anti, t))
+        st4flat(out, j, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
+
+
+# ---- angular velocity ----
+
+
+@kernel
+def _interval_rates(q, h, body, w):
+    """w[k] = rotation vector of the step k → k+1 divided by h[k] (sign-flip safe)."""
+    for k in range(q.shape[0] - 1):
+        a = E.load4(q, k)
+        b = E.load4(q, k + 1)
+        d = E.qmul(E.qconj(a), b) if body else E.qmul(b, E.qconj(a))
+        if d[0] < like(h, 0.0):
+            d = E.qneg(d)
+        un = E.vnorm((d[1], d[2], d[3]))
+        f = like(h, 2.0) * math.atan2(un, d[0]) / un / h[k] if un > like(h, 0.0) else like(h, 0.0)
+        w[k, 0] = f * d[1]
+        w[k, 1] = f * d[2]
+        w[k, 2] = f * d[3]
+
+
+# --------------------------------------------------------------------------
+# front end helpers
+
+
+def _flat(kern, *extra):
+    """Adapt a kernel writing a flat (4n,) output to `elementwise`'s (n, 4) target.
+
+    ``extra`` are trailing scalar arguments passed before the output.
+    """
+
+    def run(*args):
+        *ins, out = args
+        if out.flags.c_contiguous:
+            kern(*ins, *extra, out.reshape(-1))
+        else:
+            tmp = np.empty(out.shape, out.dtype)
+            kern(*ins, *extra, tmp.reshape(-1))
+            out[...] = tmp
+
+    return run
+
+
+def _pqt(p, q, t):
+    return [(p, "p", Q), (q, "q", Q), (t, "t", ())]
+
+
+# --------------------------------------------------------------------------
+# public functions
+
+
+def lerp(p, q, t, out=None):
+    """Linear blend (1 − t) p + t q, without normalising.
+
+    Parameters
+    ----------
+    p, q : array_like, shape (..., 4)
+        Quaternions (w, x, y, z).
+    t : array_like, shape (...)
+        Parameter; `p`, `q` and `t` broadcast together.
+    out : ndarray, optional
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.lerp([1, 0, 0, 0], [0, 1, 0, 0], 0.25)
+    array([0.75, 0.25, 0.  , 0.  ])
+    """
+    return elementwise(_flat(_lerp), _pqt(p, q, t), [Q], out)
+
+
+def nlerp(p, q, t, shortest=True, out=None):
+    """Normalised linear blend ((1 − t) p + t q)/|…|.
+
+    With ``shortest=True`` q is first flipped into p's hemisphere (p·q ≥ 0).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.nlerp([1, 0, 0, 0], [0, 0, 0, -1], 0.5), 6)  # -q is nearer
+    array([0.707107, 0.      , 0.      , 0.707107])
+    """
+    return elementwise(_flat(_nlerp, bool(shortest)), _pqt(p, q, t), [Q], out)
+
+
+def slerp(p, q, t, shortest=True, out=None):
+    """Spherical linear interpolation (great-arc, constant speed) of unit quaternions.
+
+    slerp(p, q, t) = [sin((1 − t)θ) p + sin(tθ) q] / sin θ with
+    θ = 2·atan2(|p − q|, |p + q|), the angle between p and q on S³.
+
+    Parameters
+    ----------
+    p, q : array_like, shape (..., 4)
+        Unit quaternions (w, x, y, z); normalise first if they are not.
+    t : array_like, shape (...)
+        Parameter; `p`, `q` and `t` broadcast (N pairs with N values, one pair
+        with M values → ``(M, 4)``, ...). t = 0 gives `p` and t = 1 gives `q`
+        exactly; t outside [0, 1] extrapolates along the same great arc.
+    shortest : bool, default True
+        Flip `q` into `p`'s hemisphere first (q and −q are the same rotation;
+        the flipped one gives the shorter rotation path). Then t = 1 gives −q.
+    out : ndarray, optional
+        Result array of the broadcast shape and result dtype; may be an input.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Notes
+    -----
+    Stable for identical, nearly identical and (with ``shortest=True``)
+    antipodal inputs; about one ulp from the exact result in float64. Exactly
+    antipodal p = −q with ``shortest=False`` has no unique arc and follows
+    p ⊗ (cos tπ, sin tπ, 0, 0).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> p = [1, 0, 0, 0]
+    >>> q = qa.from_rotvec([0, 0, np.pi / 2])
+    >>> np.allclose(qa.slerp(p, q, 0.5), qa.from_rotvec([0, 0, np.pi / 4]))
+    True
+    >>> qa.slerp(p, q, [0.0, 0.5, 1.0]).shape
+    (3, 4)
+    """
+    return elementwise(_flat(_slerp, bool(shortest)), _pqt(p, q, t), [Q], out)
+
+
+def double(p, q, out=None):
+    """Shoemake's Double(p, q) = 2(p·q) q − p: p reflected through q.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.double([1, 0, 0, 0], [0.6, 0.8, 0, 0])
+    array([-0.28,  0.96,  0.  ,  0.  ])
+    """
+    return elementwise(_flat(_double), [(p, "p", Q), (q, "q", Q)], [Q], out)
+
+
+def bisect(p, q, out=None):
+    """Shoemake's Bisect(p, q) = (p + q)/|p + q|: the great-arc midpoint.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.bisect([1, 0, 0, 0], [0, 1, 0, 0]), 6)
+    array([0.707107, 0.707107, 0.      , 0.      ])
+    """
+    return elementwise(_flat(_bisect), [(p, "p", Q), (q, "q", Q)], [Q], out)
+
+
+def _keys(keys, name="keys", k_min=2):
+    a = check_core(as_float(keys, name), name, Q)
+    if a.ndim != 2:
+        raise shape_error(name, "(K, 4)", a.shape)
+    if a.shape[0] < k_min:
+        raise ValueError(f"Expected `{name}` to hold at least {k_min} keys, got {a.shape[0]}.")
+    return a
+
+
+def _tangent_scales(h):
+    """Outgoing/incoming tangent factors 2hₙ/(hₙ₋₁+hₙ), 2hₙ₋₁/(hₙ₋₁+hₙ); 1 at the ends.
+
+    Factors within 1e-12 of 1 (evenly spaced times up to rounding) are set to
+    exactly 1, so even spacing reproduces :func:`bezier_controls` bit for bit.
+    """
+    k = h.shape[0] + 1
+    f_out = np.ones(k)
+    f_in = np.ones(k)
+    if k > 2:
+        s = h[:-1] + h[1:]
+        f_out[1:-1] = 2 * h[1:] / s
+        f_in[1:-1] = 2 * h[:-1] / s
+        for f in (f_out, f_in):
+            f[np.abs(f - 1) <= 1e-12] = 1.0
+    return f_out, f_in
+
+
+def bezier_controls(keys, times=None):
+    """Control points (a, b) of Shoemake's spherical Bézier spline through `keys`.
+
+    Segment n of the curve is ``bezier(keys[n], a[n], b[n+1], keys[n+1], u)``.
+    Interior keys: â_n = bisect(double(q_{n−1}, q_n), q_{n+1}),
+    a_n = slerp(q_n, â_n, 1/3), b_n = double(a_n, q_n). The ends use phantom
+    keys q_{−1} = double(q_1, q_0), q_K = double(q_{K−2}, q_{K−1}), which
+    gives a_0 = slerp(q_0, q_1, 1/3) and b_{K−1} = slerp(q_{K−1}, q_{K−2}, 1/3).
+    Every slerp is the plain great-arc one; the keys are used as given (call
+    :func:`unflip` first, and normalise).
+
+    Parameters
+    ----------
+    keys : array_like, shape (K, 4), K ≥ 2
+    times : array_like, shape (K,), optional
+        Key times for uneven spacing. With h_n = t_{n+1} − t_n the outgoing
+        arc q_n→a_n is scaled (along its great circle) by 2h_n/(h_{n−1}+h_n)
+        and the incoming arc q_n→b_n by 2h_{n−1}/(h_{n−1}+h_n). The Bézier
+        tangent at a segment end is three times its control arc per unit u, so
+        the angular velocity leaving key n is 6·log(q_n* a_n)/h̄_n on both
+        sides, with h̄_n = (h_{n−1}+h_n)/2: continuous in time across keys.
+        Evenly spaced times give factors of exactly 1 (the formula above).
+
+    Returns
+    -------
+    a, b : ndarray, shape (K, 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> keys = qa.from_rotvec([[0, 0, 0], [0, 0, 0.3]])
+    >>> a, b = qa.bezier_controls(keys)
+    >>> np.allclose(a[0], qa.slerp(keys[0], keys[1], 1 / 3))
+    True
+    """
+    q = _keys(keys)
+    k = q.shape[0]
+    if times is None:
+        f_out = f_in = np.ones(k)
+    else:
+        t = _times(times, k)
+        f_out, f_in = _tangent_scales(np.diff(t))
+    a = np.empty_like(q)
+    b = np.empty_like(q)
+    _controls(q, f_out.astype(q.dtype), f_in.astype(q.dtype), a, b)
+    return a, b
+
+
+def bezier(q0, a, b, q1, t, out=None):
+    """Spherical cubic Bézier curve by de Casteljau's construction with slerp.
+
+    Three levels, six great-arc slerps (no hemisphere flips):
+    level 1 slerp(q0, a, t), slerp(a, b, t), slerp(b, q1, t); level 2 and 3
+    slerp the results pairwise. All arguments broadcast like :func:`slerp`.
+    t = 0 gives `q0` and t = 1 gives `q1` exactly.
+
+    Parameters
+    ----------
+    q0, a, b, q1 : array_like, shape (..., 4)
+        End keys and control points (see :func:`bezier_controls`).
+    t : array_like, shape (...)
+    out : ndarray, optional
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> keys = qa.from_rotvec([[0, 0, 0], [0, 0, 0.3]])
+    >>> a, b = qa.bezier_controls(keys)
+    >>> c = qa.bezier(keys[0], a[0], b[1], keys[1], 0.5)  # two keys: exactly slerp
+    >>> np.allclose(c, qa.slerp(keys[0], keys[1], 0.5), rtol=0, atol=1e-15)
+    True
+    """
+    ins = [(q0, "q0", Q), (a, "a", Q), (b, "b", Q), (q1, "q1", Q), (t, "t", ())]
+    return elementwise(_flat(_bezier), ins, [Q], out)
+
+
+def squad_controls(keys):
+    """Shoemake's squad inner points s_n = q_n exp(−(log(q_n⁻¹q_{n+1}) + log(q_n⁻¹q_{n−1}))/4).
+
+    The end keys use s = q. Keys are used as given (unit, unflipped).
+
+    Returns
+    -------
+    ndarray, shape (K, 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> keys = qa.from_rotvec([[0, 0, 0], [0, 0, 0.2], [0, 0, 0.4]])
+    >>> np.allclose(qa.interpolation.squad_controls(keys), keys)  # one great circle
+    True
+    """
+    from . import algebra as A
+
+    q = _keys(keys)
+    s = q.copy()
+    if q.shape[0] > 2:
+        inv = A.conjugate(q[1:-1])
+        t = A.log(A.multiply(inv, q[2:])) + A.log(A.multiply(inv, q[:-2]))
+        s[1:-1] = A.multiply(q[1:-1], A.exp(-0.25 * t))
+    return s
+
+
+def squad(q0, s0, s1, q1, t, out=None):
+    """Shoemake's squad: slerp(slerp(q0, q1, t), slerp(s0, s1, t), 2t(1 − t)).
+
+    Segment n of a key stream is ``squad(q[n], s[n], s[n+1], q[n+1], u)`` with
+    `s` from :func:`squad_controls`. Plain great-arc slerps; broadcasting and
+    `out` as :func:`slerp`. For comparison with the Bézier scheme.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q0, q1 = qa.from_rotvec([[0, 0, 0], [0, 0, 0.4]])
+    >>> np.allclose(qa.squad(q0, q0, q1, q1, 0.5), qa.slerp(q0, q1, 0.5))
+    True
+    """
+    ins = [(q0, "q0", Q), (s0, "s0", Q), (s1, "s1", Q), (q1, "q1", Q), (t, "t", ())]
+    return elementwise(_flat(_squad), ins, [Q], out)
+
+
+def unflip(q, axis=0):
+    """Sign continuity along a stream: q[i] is negated when its dot product with
+    q[i−1] (already processed) is negative. Rotations are unchanged.
+
+    `axis` counts the leading (non-quaternion) axes. Returns a new array.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.unflip([[1, 0, 0, 0], [-1, 0, 0, 0], [-0.8, -0.6, 0, 0]])
+    array([[1. , 0. , 0. , 0. ],
+           [1. , 0. , 0. , 0. ],
+           [0.8, 0.6, 0. , 0. ]])
+    """
+    a = check_core(as_float(q, "q"), "q", Q)
+    lead = a.ndim - 1
+    if lead == 0:
+        raise ValueError("Expected `q` to have shape (N, ..., 4) for unflip, got (4,).")
+    if not -lead <= axis < lead:
+        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {a.shape}, got {axis}.")
+    m = np.moveaxis(a, axis % lead, 0)
+    shape = m.shape
+    out = np.empty((shape[0], math.prod(shape[1:-1]), 4), a.dtype)
+    if shape[0]:
+        _unflip(m.reshape(shape[0], -1, 4), out)
+    return np.moveaxis(out.reshape(shape), 0, axis % lead)
+
+
+def _times(times, k=None, name="times"):
+    t = np.asarray(times)
+    if t.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `{name}` to have a real dtype, got {t.dtype}.")
+    if t.ndim != 1 or (k is not None and t.shape[0] != k):
+        raise ValueError(f"Expected `{name}` to have shape ({'K' if k is None else k},), got {t.shape}.")
+    bad = ~(np.diff(t) > 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {t[i + 1]!r} "
+            f"after {name}[{i}] = {t[i]!r}."
+        )
+    return t
+
+
+_SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
+
+
+def spline(times, keys, new_times, method="bezier"):
+    """Resample a timestamped key stream at `new_times`.
+
+    The keys are normalised and unflipped first (real streams are slightly
+    non-unit and contain sign flips). Each new time is placed in its segment
+    [times[n], times[n+1]] by binary search and evaluated at
+    u = (t − times[n])/(times[n+1] − times[n]) in one batched kernel.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+        Strictly increasing key times (floats, or integers such as
+        nanosecond stamps: these are taken relative to ``times[0]`` exactly).
+    keys : array_like, shape (K, 4), K ≥ 2
+    new_times : array_like, any shape
+        Within [times[0], times[−1]], in any order.
+    method : {"bezier", "slerp", "nlerp", "squad"}
+        ``"bezier"``: segment n is ``bezier(q_n, a_n, b_{n+1}, q_{n+1}, u)``
+        with the controls of ``bezier_controls(keys, times)``: for evenly
+        spaced times exactly the contract's formula; for uneven spacing the
+        tangent arcs at key n are scaled by 2h_n/(h_{n−1}+h_n) (outgoing) and
+        2h_{n−1}/(h_{n−1}+h_n) (incoming), h_n = t_{n+1} − t_n, so the angular
+        velocity is continuous in time across keys. ``"slerp"``, ``"nlerp"``:
+        piecewise great arc / normalised chord. ``"squad"``: Shoemake's squad
+        with :func:`squad_controls` (no time scaling).
+
+    Returns
+    -------
+    ndarray, shape ``new_times.shape + (4,)``, dtype of the keys.
+
+    Raises
+    ------
+    ValueError
+        `times` not strictly increasing, shapes that do not match, a new time
+        outside the key range (the message names the first one), unknown method.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> keys = qa.from_rotvec([[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0]])
+    >>> r = qa.spline([0, 1, 2], keys, [0.0, 0.5, 2.0])
+    >>> np.allclose(qa.as_rotvec(r)[:, 2], [0, 0.25, 1.0])
+    True
+    """
+    if method not in _SPLINE:
+        raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
+    q = _keys(keys)
+    k = q.shape[0]
+    t_raw = _times(times, k)
+    nt_raw = np.asarray(new_times)
+    if nt_raw.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
+    # relative to times[0]: exact for integer stamps (ns since the epoch)
+    if t_raw.dtype.kind in "biu" and nt_raw.dtype.kind in "biu":
+        origin = t_raw[0]
+        t = (t_raw - origin).astype(np.float64)
+        nt = (nt_raw.astype(np.int64) - np.int64(origin)).astype(np.float64)
+    else:
+        t = t_raw.astype(np.float64)
+        nt = nt_raw.astype(np.float64)
+    flat_nt = nt.reshape(-1)
+    bad = ~((flat_nt >= t[0]) & (flat_nt <= t[-1]))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"Expected `new_times` within [{t_raw[0]!r}, {t_raw[-1]!r}] (the key times), "
+            f"got {nt_raw.reshape(-1)[i]!r} at flat index {i}."
+        )
+
+    from .algebra import normalize
+
+    q = unflip(normalize(q))
+    dtype = q.dtype
+    seg = np.zeros((k - 1, 25), dtype)
+    seg[:, 0:4] = q[:-1]
+    seg[:, 12:16] = q[1:]
+    if method == "bezier":
+        a, b = bezier_controls(q, t)
+        seg[:, 4:8] = a[:-1]
+        seg[:, 8:12] = b[1:]
+        for col, (p0, p1) in zip((16, 19, 22), ((0, 4), (4, 8), (8, 12))):
+            _arcs(np.ascontiguousarray(seg[:, p0:p0 + 4]), np.ascontiguousarray(seg[:, p1:p1 + 4]), seg, col)
+    elif method == "squad":
+        s = squad_controls(q)
+        seg[:, 4:8] = s[:-1]
+        seg[:, 8:12] = s[1:]
+        _arcs(q[:-1], q[1:], seg, 16)
+        _arcs(s[:-1], s[1:], seg, 19)
+    else:
+        _arcs(q[:-1], q[1:], seg, 16)
+
+    m = flat_nt.shape[0]
+    idx = np.empty(m, np.int64)
+    u = np.empty(m, dtype)
+    out = np.empty((m, 4), dtype)
+    if m:
+        _locate(t, np.ascontiguousarray(flat_nt), idx, u)
+        _SPLINE[method](seg, idx, u, out.reshape(-1))
+    return out.reshape(nt.shape + Q)
+
+
+def angular_velocity(q, times, frame="space"):
+    """Angular velocity (rad per time unit) of a sampled rotation stream.
+
+    For each step k the rotation vector of q[k+1] q[k]⁻¹ (``"space"``: axes
+    of the fixed frame) or q[k]⁻¹ q[k+1] (``"body"``: axes of the moving
+    frame), taken on the short side (sign-flip safe), divided by the step
+    h_k, is the step's rate w_k. At sample i the result is the second-order
+    (numpy ``gradient``) blend (h_i w_{i−1} + h_{i−1} w_i)/(h_{i−1} + h_i);
+    the first and last samples take their one step's rate. Constant angular
+    velocity is reproduced exactly, whatever the spacing, and
+    ``space = rotate(q, body)``.
+
+    Parameters
+    ----------
+    q : array_like, shape (N, 4), N ≥ 2
+        Quaternions (need not be unit; signs may flip).
+    times : array_like, shape (N,)
+        Strictly increasing sample times.
+    frame : {"space", "body"}
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> t = np.array([0.0, 0.1, 0.3])
+    >>> q = qa.from_rotvec(np.outer(t, [0, 0, 2.0]))  # 2 rad/s about z
+    >>> np.allclose(qa.angular_velocity(q, t), [0, 0, 2.0])
+    True
+    """
+    if frame not in ("space", "body"):
+        raise ValueError(f"Expected `frame` to be 'space' or 'body', got {frame!r}.")
+    a = _keys(q, "q")
+    n = a.shape[0]
+    t = _times(times, n).astype(np.float64)
+    h = np.diff(t).astype(a.dtype)
+    w = np.empty((n - 1, 3), a.dtype)
+    _interval_rates(a, h, frame == "body", w)
+    out = np.empty((n, 3), a.dtype)
+    out[0] = w[0]
+    out[-1] = w[-1]
+    if n > 2:
+        h0 = h[:-1, None]
+        h1 = h[1:, None]
+        out[1:-1] = (h1 * w[:-1] + h0 * w[1:]) / (h0 + h1)
+    return out
