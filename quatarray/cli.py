@@ -94,7 +94,8 @@ def _target(to, degrees):
 def cmd_convert(args):
     if args.scheduler:
         return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
-                          layout=args.layout, chunk=args.chunk, scheduler=args.scheduler)
+                          layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
+                          force=args.force)
     fields, core, fn = _target(args.to, args.degrees)
     reader = _open(args, args.IN)
     check_output(args.OUT, [args.IN], args.force)
@@ -186,7 +187,7 @@ class _FileTimes:
 def cmd_resample(args):
     if args.scheduler:
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
-                          method=args.method, chunk=args.chunk, scheduler=args.scheduler)
+                          method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force)
     import quatarray as qa
 
     newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
@@ -523,6 +524,11 @@ def _dask_call(fn, *a, **kw):
     func = getattr(mod, fn, None)
     if func is None:
         raise UsageError(f"--scheduler: quatarray.dask has no {fn} yet")
+    import inspect
+
+    params = inspect.signature(func).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        kw = {k: v for k, v in kw.items() if k in params}
     return int(func(*a, **kw) or 0)
 
 
