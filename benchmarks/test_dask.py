@@ -1,0 +1,129 @@
+"""quatarray.dask: scaling from 1 to 2 worker processes, and the overhead against one process.
+
+Run with ``pytest benchmarks/test_dask.py --benchmark-only``. Each group
+holds, measured side by side in one run:
+
+- ``inmemory-1thread``: the in-memory path in this process with numba's
+  row loops kept on one thread (the single-process baseline);
+- ``inmemory-2threads``: the same with numba's parallel row loops (2 cores);
+- ``dask-1worker`` / ``dask-2workers``: a ``distributed.LocalCluster`` of 1
+  or 2 single-threaded worker processes on 127.0.0.1 (started outside the
+  timing).
+
+scaling = time(1 worker) / time(2 workers) (goal ≥ 1.6 on 2 cores);
+overhead = time(1 worker) / time(in memory, 1 thread).
+
+Workloads: ``convert`` of a 10⁷-row ``.npy`` file to Euler angles (file to
+file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
+``spline`` through 10⁵ unevenly timed keys (chunked keys in, the lazy result
+computed into memory).
+"""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dask")
+distributed = pytest.importorskip("distributed")
+
+import dask.array as da  # noqa: E402
+
+import quatarray as qa  # noqa: E402
+import quatarray.dask as qd  # noqa: E402
+from quatarray import _jit  # noqa: E402
+
+N_CONVERT = 10_000_000
+CHUNK_CONVERT = 500_000
+N_KEYS, N_SAMPLES = 100_000, 1_000_000
+CHUNK_KEYS = 5_000
+
+
+@pytest.fixture(scope="module", params=[1, 2], ids=["1worker", "2workers"])
+def client(request):
+    cluster = distributed.LocalCluster(
+        n_workers=request.param, processes=True, threads_per_worker=1, host="127.0.0.1",
+        dashboard_address=None,
+    )
+    c = distributed.Client(cluster)
+    c.wait_for_workers(request.param)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def npy(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dask-bench")
+    src = folder / "q.npy"
+    q = np.lib.format.open_memmap(src, mode="w+", dtype=np.float64, shape=(N_CONVERT, 4))
+    for a in range(0, N_CONVERT, 1_000_000):
+        q[a : a + 1_000_000] = qa.random(1_000_000, rng=a)
+    q.flush()
+    del q
+    return src, folder / "out.npy"
+
+
+@pytest.fixture(scope="module")
+def stream():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.5, 1.5, N_KEYS))
+    keys = qa.cumprod(qa.from_rotvec(rng.normal(0, 0.1, (N_KEYS, 3))))
+    keys[rng.random(N_KEYS) < 0.2] *= -1
+    nt = np.linspace(t[0], t[-1], N_SAMPLES)
+    return t, keys, nt
+
+
+@pytest.fixture
+def one_thread(monkeypatch):
+    monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 1 << 62)
+
+
+def _cli_convert(src, dst):
+    from quatarray.cli import main
+
+    assert main(["convert", str(src), str(dst), "--to", "euler:ZYX", "--chunk", str(CHUNK_CONVERT),
+                 "--force", "--no-progress"]) == 0
+
+
+@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
+def test_convert_inmemory_1thread(benchmark, npy, one_thread):
+    benchmark.pedantic(_cli_convert, args=npy, rounds=3, iterations=1, warmup_rounds=1)
+
+
+@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
+def test_convert_inmemory_2threads(benchmark, npy):
+    benchmark.pedantic(_cli_convert, args=npy, rounds=3, iterations=1, warmup_rounds=1)
+
+
+@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
+def test_convert_dask(benchmark, npy, client):
+    src, dst = npy
+
+    def run():
+        qd.convert_file(src, dst, "euler:ZYX", chunk=CHUNK_CONVERT, scheduler=client, force=True)
+
+    benchmark.pedantic(run, rounds=3, iterations=1, warmup_rounds=1)
+    np.testing.assert_array_equal(np.load(dst, mmap_mode="r")[:1000], qa.as_euler(np.load(src)[:1000], "ZYX"))
+
+
+@pytest.mark.benchmark(group="dask-spline-1e6-samples")
+def test_spline_inmemory_1thread(benchmark, stream, one_thread):
+    t, keys, nt = stream
+    benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
+
+
+@pytest.mark.benchmark(group="dask-spline-1e6-samples")
+def test_spline_inmemory_2threads(benchmark, stream):
+    t, keys, nt = stream
+    benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
+
+
+@pytest.mark.benchmark(group="dask-spline-1e6-samples")
+def test_spline_dask(benchmark, stream, client):
+    t, keys, nt = stream
+    keys_d = client.persist(da.from_array(keys, chunks=(CHUNK_KEYS, 4)))  # keys already on the workers
+
+    def run():
+        return client.compute(qd.spline(t, keys_d, nt), sync=True)
+
+    got = benchmark.pedantic(run, rounds=3, iterations=1, warmup_rounds=1)
+    np.testing.assert_allclose(got, qa.spline(t, keys, nt), rtol=0, atol=1e-13)
