@@ -294,8 +294,9 @@ def _polar(m4, rtol):
     """Split homogeneous matrices into translation, rotation factor and symmetric factor.
 
     Returns ``lead, dtype, v (n,3), q (n,4), P (n,3,3), sig (n,3), reflected (n,), finite (n,)``
-    where the linear part A = R(q) P with P symmetric. A reflection (det A < 0)
-    is written as the rotation −U times the negative definite −P.
+    where the linear part A = R(q) P with P symmetric. For a reflection
+    (det A < 0), R(q) is the rotation nearest to A and P has one negative
+    eigenvalue (on A's smallest singular direction).
     """
     m = as_float(m4, "m4")
     if m.ndim < 2 or m.shape[-1] != 4 or m.shape[-2] not in (3, 4):
@@ -317,13 +318,17 @@ def _polar(m4, rtol):
             )
     a = np.array(flat[:, :3, :3], dtype=dtype)
     a[~finite] = np.eye(3, dtype=dtype)
-    w, sig, vt = np.linalg.svd(a)
+    w, sig, vt = np.linalg.svd(a)  # A = W Σ Vᵀ, σ descending
+    # A reflection (det A < 0): A = (W D Vᵀ)(V D Σ Vᵀ) with D = diag(1, 1, −1),
+    # so U = W D Vᵀ is the rotation nearest to A and P takes the sign on its
+    # smallest singular direction.
+    reflected = np.linalg.det(w) * np.linalg.det(vt) < 0
+    w[reflected, :, 2] *= -1
+    signed = sig.copy()
+    signed[reflected, 2] *= -1
     u = w @ vt
-    reflected = np.linalg.det(u) < 0
-    u[reflected] *= -1
-    p = (np.swapaxes(vt, -1, -2) * sig[:, None, :]) @ vt
+    p = (np.swapaxes(vt, -1, -2) * signed[:, None, :]) @ vt
     p = 0.5 * (p + np.swapaxes(p, -1, -2))
-    p[reflected] *= -1
     q = np.asarray(from_matrix(u, assume_valid=True), dtype=dtype)
     v = np.array(flat[:, :3, 3], dtype=dtype)
     if not finite.all():
@@ -846,9 +851,10 @@ class VQM(_Transform):
 
         The linear part A is split by polar decomposition A = U P: q is the
         quaternion of the rotation factor U and M = P is symmetric (positive
-        semi-definite). A reflection (det A < 0) gives q from the rotation −U
-        and M = −P (symmetric, negative definite). ``as_matrix`` gives `m4`
-        back. The last row must be (0, 0, 0, 1) within ``rtol`` (default 1e-6
+        semi-definite). For a reflection (det A < 0) U is the rotation
+        nearest to A and the symmetric M takes the sign: one negative
+        eigenvalue, on A's smallest singular direction (so diag(−1, 2, 3)
+        gives q = 1 and M = diag(−1, 2, 3)). ``as_matrix`` gives `m4` back. The last row must be (0, 0, 0, 1) within ``rtol`` (default 1e-6
         for float64, 1e-4 for float32).
 
         Examples
