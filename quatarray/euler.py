@@ -74,7 +74,7 @@ def atan2(y, x):
     num = mn - mx if big else mn
     den = mn + mx if big else mx
     u = num / den
-    u = zero if mx == zero else u
+    u = zero if (mx == zero) & (mn == zero) else u  # atan2(±0, ±0); nan stays nan
     z = u * u
     p = (((like(x, _AP[0]) * z + like(x, _AP[1])) * z + like(x, _AP[2])) * z + like(x, _AP[3])) * z + like(
         x, _AP[4]
@@ -84,8 +84,11 @@ def atan2(y, x):
     )
     r = u + u * (z * p / q)
     r = r + (like(x, math.pi / 4) + like(x, 0.5 * _MOREBITS) if big else zero)
-    r = (like(x, math.pi / 2) - r) + like(x, _MOREBITS) if swap else r
-    r = (like(x, math.pi) - r) + like(x, 2 * _MOREBITS) if math.copysign(like(x, 1.0), x) < zero else r
+    # quadrant: r, π/2 − r (|y| > |x|), π/2 + r (and x < 0), π − r (x < 0)
+    neg = math.copysign(like(x, 1.0), x) < zero
+    hi = like(x, math.pi / 2) if swap else (like(x, math.pi) if neg else zero)
+    lo = like(x, _MOREBITS) if swap else (like(x, 2 * _MOREBITS) if neg else zero)
+    r = hi + ((-r if swap != neg else r) + lo)
     return math.copysign(r, y)
 
 
@@ -101,7 +104,7 @@ _PIO2_32 = (2 * 0.78515625, 2 * 2.4187564849853515625e-4, 2 * 3.7748949774459410
 
 def _pio2_split(x):
     """(π/2 in three parts, reduction limit) in the float type of ``x``."""
-    return _PIO2_64
+    return _PIO2_32 if isinstance(x, np.float32) else _PIO2_64
 
 
 @overload(_pio2_split, jit_options={"cache": CACHE})
@@ -211,17 +214,18 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
         b = qi + t * qk
         c = qj + t * w
         d = qk - t * qi
-        h1 = math.sqrt(c * c + d * d)
-        h2 = math.sqrt(a * a + b * b)
+        h1 = np.sqrt(c * c + d * d)  # np: numpy scalars also when run as plain Python
+        h2 = np.sqrt(a * a + b * b)
         # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
         # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
         # which is as sharp near π as near 0, also in float32.
         mid = two * atan2(h1, h2)
         tiny = like(w, 5e-8)
-        case1 = (h1 <= tiny * h2) & (h2 > zero)
-        case2 = (h2 <= tiny * h1) & (h1 > zero)  # excludes case1 (tiny² < 1)
+        hh = h1 + h2
+        ok = (hh > zero) & (hh < like(w, math.inf))  # zero, inf or nan quaternion → nan
+        case1 = (h1 <= tiny * h2) & ok
+        case2 = (h2 <= tiny * h1) & ok  # excludes case1 when ok (tiny² < 1)
         lock = case1 | case2
-        nul = (h1 == zero) & (h2 == zero)  # zero quaternion → nan
         # step 3: first and third angles; at gimbal lock scipy's rule: the
         # third angle is 0 and the first carries the whole rotation
         hs = atan2(b, a)
@@ -232,9 +236,9 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
         v = v * (sg if tb == 1 else one)
         nan = like(w, math.nan)
         s = like(w, scale)
-        of[3 * r] = nan if nul else wrap(u if ext else v) * s
-        of[3 * r + 1] = nan if nul else wrap(mid - like(w, lamb)) * s
-        of[3 * r + 2] = nan if nul else wrap(v if ext else u) * s
+        of[3 * r] = nan if not ok else wrap(u if ext else v) * s
+        of[3 * r + 1] = nan if not ok else wrap(mid - like(w, lamb)) * s
+        of[3 * r + 2] = nan if not ok else wrap(v if ext else u) * s
         locked += np.int64(lock)
     return locked
 

@@ -1,0 +1,363 @@
+"""Euler angles against scipy's Rotation.as_euler / from_euler (the oracle)."""
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation as R
+
+import quatarray as qa
+from quatarray import euler
+
+TAIT_BRYAN = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx"]
+PROPER = ["xyx", "xzx", "yxy", "yzy", "zxz", "zyz"]
+EXTRINSIC = TAIT_BRYAN + PROPER
+SEQS = EXTRINSIC + [s.upper() for s in EXTRINSIC]
+
+
+def angdiff(a, b):
+    """|a − b| modulo 2π (π and −π are the same angle)."""
+    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+    return np.abs((d + np.pi) % (2 * np.pi) - np.pi)
+
+
+def scipy_euler(q, seq, degrees=False):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return R.from_quat(np.asarray(q, np.float64), scalar_first=True).as_euler(seq, degrees=degrees)
+
+
+def scipy_quat(seq, angles, degrees=False):
+    return R.from_euler(seq, np.asarray(angles, np.float64), degrees=degrees).as_quat(scalar_first=True)
+
+
+def is_proper(seq):
+    return seq[0].lower() == seq[2].lower()
+
+
+@pytest.fixture(scope="module")
+def quats():
+    q = qa.random(2000, rng=7)
+    return np.concatenate([q, -q[:200]])  # both signs
+
+
+# --------------------------------------------------------------------------
+# as_euler
+
+
+@pytest.mark.parametrize("seq", SEQS)
+def test_as_euler_matches_scipy_float64(quats, seq):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # random rotations are not at gimbal lock
+        got = qa.as_euler(quats, seq)
+    ref = scipy_euler(quats, seq)
+    assert got.shape == (len(quats), 3) and got.dtype == np.float64
+    assert angdiff(got, ref).max() < 1e-13
+    # scipy's ranges: first/third in [-π, π], second in [-π/2, π/2] or [0, π]
+    assert np.all(np.abs(got) <= np.pi)
+    lo, hi = (0, np.pi) if is_proper(seq) else (-np.pi / 2, np.pi / 2)
+    assert np.all((got[:, 1] >= lo) & (got[:, 1] <= hi))
+
+
+@pytest.mark.parametrize("seq", ["xyz", "ZYX", "zxz", "YZY"])
+def test_as_euler_float32(quats, seq):
+    q32 = quats.astype(np.float32)
+    got = qa.as_euler(q32, seq)
+    assert got.dtype == np.float32
+    ref = scipy_euler(q32, seq)
+    # the middle angle is well conditioned; first and third lose ~eps/sin(middle)
+    assert angdiff(got[:, 1], ref[:, 1]).max() < 2e-6
+    far = np.abs(np.sin(ref[:, 1] + (0 if is_proper(seq) else np.pi / 2))) > 0.05
+    assert angdiff(got[far], ref[far]).max() < 5e-5
+    # every row still describes the same rotation
+    back = qa.from_euler(seq, got.astype(np.float64))
+    assert qa.distance(back, q32.astype(np.float64)).max() < 1e-5
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="inspects compiled signatures")
+def test_kernels_stay_float32():
+    qa.as_euler(np.ones((3, 4), np.float32), "xyz")
+    qa.from_euler("xyz", np.ones((3, 3), np.float32))
+    for k in (euler._as_euler.serial, euler._from_euler.serial):
+        sigs = [s for s in k.nopython_signatures if s.args[0].dtype.name == "float32"]
+        assert sigs and all(s.return_type.__class__.__name__ == "Integer" for s in sigs)
+        for s in sigs:  # every array argument (input and output) is float32
+            assert all(a.dtype.name == "float32" for a in s.args if hasattr(a, "dtype") and hasattr(a, "ndim"))
+
+
+def gimbal_angles(seq, n, rng):
+    """Rotations whose middle angle is singular: ±90° (Tait–Bryan), 0/180° (proper)."""
+    a = rng.uniform(-np.pi, np.pi, (n, 3))
+    choice = rng.random(n) < 0.5
+    if is_proper(seq):
+        a[:, 1] = np.where(choice, 0.0, np.pi)
+    else:
+        a[:, 1] = np.where(choice, np.pi / 2, -np.pi / 2)
+    return a
+
+
+@pytest.mark.parametrize("seq", SEQS)
+def test_gimbal_lock_matches_scipy(seq):
+    rng = np.random.default_rng(abs(hash(seq)) % 2**32)
+    q = scipy_quat(seq, gimbal_angles(seq, 50, rng))
+    q = np.concatenate([q, qa.random(5, rng=1)])  # some regular rows too
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        got = qa.as_euler(q, seq)
+    gimbal = [x for x in w if issubclass(x.category, UserWarning)]
+    assert len(gimbal) == 1 and "Gimbal lock" in str(gimbal[0].message)
+    assert "50 of 55" in str(gimbal[0].message)
+    assert gimbal[0].filename == __file__  # stacklevel points at the caller
+    ref = scipy_euler(q, seq)
+    assert angdiff(got, ref).max() < 1e-12
+    assert np.all(got[:50, 2] == 0)  # scipy's rule: the third angle of `seq` set to zero
+    assert qa.distance(qa.from_euler(seq, got), q).max() < 1e-12
+
+
+@pytest.mark.parametrize("seq", ["zxz", "XYZ"])
+def test_gimbal_threshold_is_scipys(seq):
+    # the second angle within 1e-7 of its singular value locks, 1e-6 away does not
+    base = 0.0 if is_proper(seq) else np.pi / 2
+    a = np.array([[0.3, base + 0.4e-7, -0.7], [0.3, base + 1e-6, -0.7], [0.3, base - 0.4e-7, -0.7]])
+    q = scipy_quat(seq, a)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        got = qa.as_euler(q, seq)
+    w = [x for x in w if issubclass(x.category, UserWarning)]
+    assert len(w) == 1 and "2 of 3" in str(w[0].message)
+    assert angdiff(got, scipy_euler(q, seq)).max() < 1e-9
+
+
+def test_suppress_warnings_and_no_warning_when_regular():
+    q = scipy_quat("zxz", [[0.1, 0.0, 0.2], [0.3, np.pi, 0.1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        got = qa.as_euler(q, "zxz", suppress_warnings=True)
+        qa.as_euler(qa.random(100, rng=3), "xyz")
+    assert np.allclose(got, scipy_euler(q, "zxz"))
+    with pytest.warns(UserWarning, match="Gimbal lock"):
+        qa.as_euler(q, "zxz")
+
+
+def test_float32_gimbal_exact_quaternions():
+    # (c, 0, 0, s) is a pure z rotation: zxz with middle angle 0, exactly in float32
+    t = np.linspace(-3, 3, 7)
+    q = np.stack([np.cos(t / 2), 0 * t, 0 * t, np.sin(t / 2)], axis=1).astype(np.float32)
+    with pytest.warns(UserWarning, match="7 of 7"):
+        got = qa.as_euler(q, "zxz")
+    assert got.dtype == np.float32
+    assert angdiff(got, scipy_euler(q, "zxz")).max() < 1e-6
+    assert np.all(got[:, 1:] == 0)
+
+
+def test_identity():
+    q = qa.identity(3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for seq in TAIT_BRYAN + ["ZYX"]:
+            assert np.array_equal(qa.as_euler(q, seq), np.zeros((3, 3)))
+    # a proper Euler sequence is at gimbal lock at the identity (middle angle 0), as in scipy
+    with pytest.warns(UserWarning):
+        assert np.array_equal(qa.as_euler(q, "zxz"), np.zeros((3, 3)))
+    for seq in ["xyz", "ZXZ"]:
+        assert np.array_equal(qa.from_euler(seq, np.zeros(3)), [1, 0, 0, 0])
+
+
+def test_sign_and_scale_invariance(quats):
+    q = quats[:500]
+    for seq in ["xyz", "ZYZ", "yxy", "ZXY"]:
+        a = qa.as_euler(q, seq)
+        assert angdiff(qa.as_euler(-q, seq), a).max() < 1e-13
+        assert angdiff(qa.as_euler(3.7 * q, seq), a).max() < 1e-13
+        assert angdiff(qa.as_euler(1e-100 * q, seq), a).max() < 1e-13
+
+
+def test_degrees(quats):
+    for seq in ["zyx", "XZX"]:
+        rad = qa.as_euler(quats, seq)
+        deg = qa.as_euler(quats, seq, degrees=True)
+        assert np.array_equal(deg, np.rad2deg(rad))
+        assert np.abs(deg - scipy_euler(quats, seq, degrees=True)).max() < 1e-10
+        back = qa.from_euler(seq, deg, degrees=True)
+        assert qa.distance(back, quats).max() < 1e-12
+        assert np.abs(back - scipy_quat(seq, deg, degrees=True)).max() < 1e-15
+
+
+def test_nan_zero_and_inf():
+    q = np.array([[1, 0, 0, 0], [np.nan, 0, 0, 0], [0, 0, 0, 0], [0.5, np.inf, 0, 0], [0, 0, 0, 1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # degenerate rows are not "gimbal lock"
+        got = qa.as_euler(q, "xyz")
+    assert np.all(np.isnan(got[1:4]))
+    assert np.array_equal(got[0], [0, 0, 0])
+    assert np.allclose(got[4], scipy_euler(q[4], "xyz"))
+    a = np.array([[0.1, np.nan, 0.2], [0.1, 0.2, 0.3], [np.inf, 0, 0]])
+    out = qa.from_euler("XYZ", a)
+    assert np.all(np.isnan(out[[0, 2]]))
+    assert np.allclose(out[1], scipy_quat("XYZ", a[1]))
+
+
+def test_shapes_and_broadcasting():
+    q = qa.random((2, 3), rng=1)
+    got = qa.as_euler(q, "xyz")
+    assert got.shape == (2, 3, 3)
+    assert np.allclose(got.reshape(-1, 3), qa.as_euler(q.reshape(-1, 4), "xyz"))
+    assert qa.as_euler(q[0, 0], "xyz").shape == (3,)
+    assert qa.as_euler(np.empty((0, 4)), "xyz").shape == (0, 3)
+    assert qa.from_euler("xyz", [0.1, 0.2, 0.3]).shape == (4,)
+    a = np.random.default_rng(0).uniform(-3, 3, (2, 5, 3))
+    out = qa.from_euler("ZXZ", a)
+    assert out.shape == (2, 5, 4)
+    assert np.allclose(out.reshape(-1, 4), scipy_quat("ZXZ", a.reshape(-1, 3)))
+    assert qa.from_euler("xyz", np.empty((0, 3))).shape == (0, 4)
+    # lists and integers become float64
+    assert qa.from_euler("xyz", [[0, 0, 1]]).dtype == np.float64
+    assert qa.as_euler([[1, 0, 0, 0]], "xyz").dtype == np.float64
+
+
+def test_strided_and_read_only_inputs():
+    q = qa.random(200, rng=2)
+    view = np.asfortranarray(q)[::2]
+    view.flags.writeable = False
+    before = view.copy()
+    assert np.allclose(qa.as_euler(view, "yzx"), scipy_euler(before, "yzx"))
+    assert np.array_equal(view, before)
+    a = np.random.default_rng(1).uniform(-3, 3, (3, 400)).T[::3]
+    a.flags.writeable = False
+    assert np.allclose(qa.from_euler("yzx", a), scipy_quat("yzx", a))
+
+
+def test_bad_seq():
+    for bad in ["xyzx", "xy", "xxy", "xyy", "xYz", "abc", "", "XxZ"]:
+        with pytest.raises(ValueError, match="Expected `seq`.*'xyz'.*'zxz'"):
+            qa.as_euler([1, 0, 0, 0], bad)
+        with pytest.raises(ValueError, match="Expected `seq`"):
+            qa.from_euler(bad, [0, 0, 0])
+    with pytest.raises(TypeError, match="Expected `seq`"):
+        qa.from_euler(None, [0, 0, 0])
+
+
+def test_bad_shapes_and_dtypes():
+    with pytest.raises(ValueError, match=r"Expected `q` to have shape \(\.\.\., 4\), got \(10, 3\)\."):
+        qa.as_euler(np.zeros((10, 3)), "xyz")
+    with pytest.raises(ValueError, match=r"Expected `angles` to have shape \(\.\.\., 3\), got \(10, 2\)\."):
+        qa.from_euler("xyz", np.zeros((10, 2)))
+    with pytest.raises(ValueError, match=r"Expected `angles` to have shape \(\.\.\., 3\), got \(\)\."):
+        qa.from_euler("xyz", 0.5)
+    with pytest.raises(TypeError, match="`q`"):
+        qa.as_euler(np.zeros((2, 4), complex), "xyz")
+    with pytest.raises(TypeError, match="`angles`"):
+        qa.from_euler("xyz", np.zeros(3, complex))
+
+
+# --------------------------------------------------------------------------
+# from_euler
+
+
+@pytest.mark.parametrize("seq", SEQS)
+def test_from_euler_matches_scipy(seq):
+    rng = np.random.default_rng(len(seq) + sum(map(ord, seq)))
+    a = rng.uniform(-2 * np.pi, 2 * np.pi, (1000, 3))
+    a[:10] *= 100  # larger angles still in the fast range
+    ref = scipy_quat(seq, a)
+    got = qa.from_euler(seq, a)
+    assert got.dtype == np.float64
+    assert np.abs(got - ref).max() < 1e-14  # same formula, same sign as scipy
+    got32 = qa.from_euler(seq, a.astype(np.float32))
+    assert got32.dtype == np.float32
+    assert np.abs(got32 - scipy_quat(seq, a.astype(np.float32))).max() < 2e-6
+
+
+def test_from_euler_huge_angles_use_libm():
+    a = np.array([[1e7, 0.5, -3e8], [1e5, -2e5, 7e5], [0.1, 0.2, 1e300]])
+    assert np.abs(qa.from_euler("zyx", a) - scipy_quat("zyx", a)).max() < 1e-9
+    a32 = np.array([[3e4, 0.5, -1e5], [0.1, 0.2, 0.3]], np.float32)
+    assert np.abs(qa.from_euler("ZYX", a32) - scipy_quat("ZYX", a32)).max() < 1e-6
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda v: np.linalg.norm(v) > 1e-3),
+    st.sampled_from(SEQS),
+)
+def test_round_trip(v, seq):
+    q = np.array(v)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        a = qa.as_euler(q, seq)
+    # at gimbal lock (middle angle within 1e-7 of singular) the dropped part is < 1e-7 rad
+    tol = 1.1e-7 if any(issubclass(x.category, UserWarning) for x in w) else 1e-12
+    assert float(qa.distance(qa.from_euler(seq, a), q)) < tol
+    # and from_euler → as_euler reproduces the rotation of the angles
+    back = qa.from_euler(seq, qa.as_euler(qa.from_euler(seq, a), seq, suppress_warnings=True))
+    assert float(qa.distance(back, q)) < 2 * tol
+
+
+# --------------------------------------------------------------------------
+# the vectorisable elementary functions
+
+
+def ulps(got, ref):
+    return np.abs(got - ref) / np.spacing(np.maximum(np.abs(ref), np.finfo(np.float64).tiny))
+
+
+@pytest.fixture(scope="module")
+def loops():
+    from numba import njit
+
+    @njit
+    def atan2_loop(y, x, out):
+        for i in range(y.shape[0]):
+            out[i] = euler.atan2(y[i], x[i])
+
+    @njit
+    def sincos_loop(x, s, c):
+        for i in range(x.shape[0]):
+            s[i], c[i] = euler.sincos(x[i])
+
+    return atan2_loop, sincos_loop
+
+
+def test_atan2_within_2_ulp(loops):
+    rng = np.random.default_rng(3)
+    n = 20000
+    y = rng.standard_normal(n) * np.exp(rng.uniform(-40, 40, n))
+    x = rng.standard_normal(n) * np.exp(rng.uniform(-40, 40, n))
+    out = np.empty(n)
+    loops[0](y, x, out)
+    assert ulps(out, np.arctan2(y, x)).max() <= 2
+    s = np.array([0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan])
+    yy, xx = np.meshgrid(s, s)
+    out = np.empty(yy.size)
+    loops[0](yy.ravel(), xx.ravel(), out)
+    ref = np.arctan2(yy.ravel(), xx.ravel())
+    both_inf = np.isinf(yy.ravel()) & np.isinf(xx.ravel())
+    ok = ~both_inf
+    np.testing.assert_array_equal(out[ok], ref[ok])  # also the signs of zeros and ±π
+    num = ok & ~np.isnan(ref)
+    assert np.array_equal(np.signbit(out[num]), np.signbit(ref[num]))
+    assert np.all(np.isnan(out[both_inf]))  # documented: atan2(±inf, ±inf) is nan
+    out32 = np.empty(n, np.float32)
+    loops[0](y.astype(np.float32), x.astype(np.float32), out32)
+    assert np.abs(out32 - np.arctan2(y.astype(np.float32), x.astype(np.float32))).max() < 5e-7
+
+
+def test_sincos_accuracy(loops):
+    rng = np.random.default_rng(4)
+    x = np.concatenate([rng.uniform(-10, 10, 10000), rng.uniform(-1e6, 1e6, 10000), [0.0, -0.0, 1e-300]])
+    x = np.concatenate([x, np.arange(-20, 21) * (np.pi / 2)])
+    s, c = np.empty_like(x), np.empty_like(x)
+    loops[1](x, s, c)
+    assert np.abs(s - np.sin(x)).max() < 3e-16
+    assert np.abs(c - np.cos(x)).max() < 3e-16
+    small = np.abs(x) < 1
+    assert ulps(s[small], np.sin(x[small])).max() <= 2
+    assert np.array_equal(np.signbit(s[:10002][x[:10002] == 0]), np.signbit(x[:10002][x[:10002] == 0]))
+    x32 = rng.uniform(-8192, 8192, 10000).astype(np.float32)
+    s32, c32 = np.empty_like(x32), np.empty_like(x32)
+    loops[1](x32, s32, c32)
+    assert np.abs(s32 - np.sin(x32.astype(np.float64))).max() < 2e-7
+    assert np.abs(c32 - np.cos(x32.astype(np.float64))).max() < 2e-7
