@@ -27,6 +27,18 @@ import os
 import numpy as np
 import pytest
 
+try:
+    import quaternion as npq
+except ImportError:  # pragma: no cover - optional competitor
+    npq = None
+try:
+    import quaternionic as qn
+except ImportError:  # pragma: no cover - optional competitor
+    qn = None
+
+# the usual `lib` parameter values: quatarray float64 (the reference), quatarray float32, the others
+LIBS = ["quatarray", "quatarray-f32", "scipy", "numpy-quaternion", "quaternionic"]
+
 SIZES = [1, 1_000, 1_000_000, 2_000_000]
 if os.environ.get("QUATARRAY_BENCH_LARGE", "0") not in ("", "0"):
     SIZES.append(10_000_000)
@@ -48,6 +60,19 @@ def arrays(n, dtype=np.float64):
             _CACHE[base] = dict(p=p, q=q, v=rng.standard_normal((n, 3)), t=rng.random(n))
         _CACHE[key] = {k: a.astype(dtype) for k, a in _CACHE[base].items()}
     return _CACHE[key]
+
+
+def need(lib):
+    """Skip unless the competitor ``lib`` is installed."""
+    if lib == "numpy-quaternion" and npq is None:
+        pytest.skip("numpy-quaternion is not installed")
+    if lib == "quaternionic" and qn is None:
+        pytest.skip("quaternionic is not installed")
+
+
+def data_for(lib, n):
+    """:func:`arrays` in the dtype of ``lib`` (float32 for ``...-f32`` entries)."""
+    return arrays(n, np.float32 if lib.endswith("f32") else np.float64)
 
 
 def run(benchmark, fn, n):

@@ -19,33 +19,13 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import SIZES, arrays, run
+from conftest import LIBS, SIZES, arrays, need, npq, qn, run
+from conftest import data_for as _data
 
 import quatarray as qa
 
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
-
-try:
-    import quaternion as npq
-except ImportError:  # pragma: no cover - optional competitor
-    npq = None
-try:
-    import quaternionic as qn
-except ImportError:  # pragma: no cover - optional competitor
-    qn = None
-
-LIBS = ["quatarray", "quatarray-f32", "scipy", "numpy-quaternion", "quaternionic"]
-
-
-def _need(lib):
-    if lib == "numpy-quaternion" and npq is None:
-        pytest.skip("numpy-quaternion is not installed")
-    if lib == "quaternionic" and qn is None:
-        pytest.skip("quaternionic is not installed")
-
-
-def _data(lib, n):
-    return arrays(n, np.float32 if lib.endswith("f32") else np.float64)
+_need = need
 
 
 def _rot(a):
