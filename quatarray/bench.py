@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 LIBS = ("quatarray", "scipy", "numpy-quaternion", "quaternionic")
-DEFAULT_N = 1_000_000
+DEFAULT_N = 2_000_000
 NOT_AVAILABLE = "n/a: not available"
 
 
@@ -452,13 +452,13 @@ def table(n, ceil, rows, over=None):
     return "\n".join(lines)
 
 
-def run(n=None, json_path=None, budget=1.5, stream=None):
+def run(n=None, json_path=None, budget=1.0, stream=None):
     """Run the side-by-side benchmark, print the table, optionally write JSON.
 
     Parameters
     ----------
     n : int, optional
-        Quaternions per call (default 1,000,000).
+        Quaternions per call (default 2,000,000, the size of the performance targets).
     json_path : str or path, optional
         Write the same figures as JSON here.
     budget : float
