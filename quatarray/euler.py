@@ -187,8 +187,10 @@ def compose_axes(e0, e1, e2, intrinsic):
 
 
 @rowloop(parallel=False)
-def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
-    """Bernardes & Viollet, row by row; returns the number of rows at gimbal lock.
+def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked):
+    """Bernardes & Viollet, row by row; ``locked[r]`` says whether row r is at
+    gimbal lock (a per-row flag rather than a count: an integer reduction kept
+    the float32 loop from vectorising).
 
     ``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
     the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan
@@ -198,14 +200,16 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
     n = q.shape[0]
     qf = q.reshape(n * 4)
     of = out.reshape(n * 3)
-    locked = 0
+    # parameters in the array's float type, once
+    t = like(q, tb)
+    sg = like(q, sign)
+    lb = like(q, lamb)
+    s = like(q, scale)
     for r in prange(n):
         w, x, y, z = qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]
         one = like(w, 1.0)
         zero = like(w, 0.0)
         two = like(w, 2.0)
-        t = like(w, tb)
-        sg = like(w, sign)
         qi = x if ci == 1 else (y if ci == 2 else z)
         qj = x if cj == 1 else (y if cj == 2 else z)
         qk = sg * (x if ck == 1 else (y if ck == 2 else z))
@@ -235,24 +239,22 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out):
         v = hs + hd if not lock else (zero if ext else g)  # third angle slot
         v = v * (sg if tb == 1 else one)
         nan = like(w, math.nan)
-        s = like(w, scale)
         of[3 * r] = nan if not ok else wrap(u if ext else v) * s
-        of[3 * r + 1] = nan if not ok else wrap(mid - like(w, lamb)) * s
+        of[3 * r + 1] = nan if not ok else wrap(mid - lb) * s
         of[3 * r + 2] = nan if not ok else wrap(v if ext else u) * s
-        locked += np.int64(lock)
-    return locked
+        locked[r] = lock
 
 
 @rowloop(parallel=False)
-def _from_euler(angles, a0, a1, a2, intrinsic, unit, out):
-    """q = product of the three axis rotations; returns the number of rows that
-    needed libm (half angles beyond the fast sin/cos range, or inf)."""
+def _from_euler(angles, a0, a1, a2, intrinsic, unit, out, far):
+    """q = product of the three axis rotations; ``far[r]`` flags rows whose half
+    angles lie beyond the fast sin/cos range (or are inf): :func:`_from_euler_far`
+    redoes those with libm."""
     n = angles.shape[0]
     af = angles.reshape(n * 3)
     of = out.reshape(n * 4)
-    far = 0
+    k = like(angles, unit) * like(angles, 0.5)
     for r in prange(n):
-        k = like(af[3 * r], unit) * like(af[3 * r], 0.5)
         h0 = af[3 * r] * k
         h1 = af[3 * r + 1] * k
         h2 = af[3 * r + 2] * k
@@ -268,19 +270,22 @@ def _from_euler(angles, a0, a1, a2, intrinsic, unit, out):
         of[4 * r + 1] = qx
         of[4 * r + 2] = qy
         of[4 * r + 3] = qz
-        far += np.int64(beyond(h0) | beyond(h1) | beyond(h2))
-    if far > 0:
-        for r in prange(n):
-            k = like(af[3 * r], unit) * like(af[3 * r], 0.5)
-            h0 = af[3 * r] * k
-            h1 = af[3 * r + 1] * k
-            h2 = af[3 * r + 2] * k
-            if beyond(h0) or beyond(h1) or beyond(h2):
-                e0 = axis_quat(a0, np.sin(h0), np.cos(h0))
-                e1 = axis_quat(a1, np.sin(h1), np.cos(h1))
-                e2 = axis_quat(a2, np.sin(h2), np.cos(h2))
-                E.store4(out, r, compose_axes(e0, e1, e2, intrinsic))
-    return far
+        far[r] = beyond(h0) | beyond(h1) | beyond(h2)
+
+
+@rowloop(parallel=False)
+def _from_euler_far(angles, a0, a1, a2, intrinsic, unit, out, far):
+    """The rows flagged in ``far`` again, with libm's sin and cos."""
+    k = like(angles, unit) * like(angles, 0.5)
+    for r in prange(angles.shape[0]):
+        if far[r]:
+            h0 = angles[r, 0] * k
+            h1 = angles[r, 1] * k
+            h2 = angles[r, 2] * k
+            e0 = axis_quat(a0, np.sin(h0), np.cos(h0))
+            e1 = axis_quat(a1, np.sin(h1), np.cos(h1))
+            e2 = axis_quat(a2, np.sin(h2), np.cos(h2))
+            E.store4(out, r, compose_axes(e0, e1, e2, intrinsic))
 
 
 # --------------------------------------------------------------------------
@@ -345,7 +350,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     >>> q = qa.from_euler("zyx", [90, 30, 10], degrees=True)
     >>> np.round(qa.as_euler(q, "zyx", degrees=True), 9)
     array([90., 30., 10.])
-    >>> np.round(qa.as_euler([1, 0, 0, 0], "ZXZ"), 9)
+    >>> np.round(qa.as_euler([1, 0, 0, 0], "ZXZ", suppress_warnings=True), 9)  # gimbal lock
     array([0., 0., 0.])
     """
     axes, intrinsic = _parse_seq(seq)
@@ -357,10 +362,12 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     sign = (i - j) * (j - k) * (k - i) // 2
     flat = _rows(a, (4,))
     out = np.empty((flat.shape[0], 3), a.dtype)
+    flags = np.empty(flat.shape[0], np.bool_)
     scale = 180.0 / math.pi if degrees else 1.0
     lamb = math.pi / 2 if tait_bryan else 0.0
-    locked = _as_euler(flat, i + 1, j + 1, k + 1, int(tait_bryan), sign, not intrinsic, lamb, scale, out)
-    if locked and not suppress_warnings:
+    _as_euler(flat, i + 1, j + 1, k + 1, int(tait_bryan), sign, not intrinsic, lamb, scale, out, flags)
+    locked = np.count_nonzero(flags) if not suppress_warnings else 0
+    if locked:
         warnings.warn(_GIMBAL.format(n=locked, total=flat.shape[0]), UserWarning, stacklevel=2)
     return out.reshape(a.shape[:-1] + (3,))
 
@@ -399,5 +406,9 @@ def from_euler(seq, angles, degrees=False):
         raise shape_error("angles", "(..., 3)", a.shape)
     flat = _rows(a, (3,))
     out = np.empty((flat.shape[0], 4), a.dtype)
-    _from_euler(flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out)
+    far = np.empty(flat.shape[0], np.bool_)
+    args = (flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out, far)
+    _from_euler(*args)
+    if far.any():  # rare: angles beyond ±2·10⁶ rad (float32: ±16384) or inf
+        _from_euler_far(*args)
     return out.reshape(a.shape[:-1] + (4,))
