@@ -315,7 +315,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     """Euler angles of rotation quaternions, as scipy's ``Rotation.as_euler``.
 
     Computed from the quaternion directly (Bernardes & Viollet), for any
-    non-zero scale of `q` (no normalising needed; a zero quaternion gives nan).
+    scale of `q` between about 1e-150 and 1e150 (no normalising needed); a
+    zero, inf or nan quaternion gives nan angles.
 
     Parameters
     ----------
@@ -342,7 +343,16 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
         At most once per call, when any rotation is at gimbal lock (the second
         angle within 1e-7 rad of its singular values). There the third angle
         is set to 0 and the first carries the whole rotation about the
-        (then aligned) first and third axes, as scipy does.
+        (then aligned) first and third axes, as scipy does. The test is
+        ``h1 <= tan(5e-8) h2`` on the two half-angle magnitudes, the same as
+        scipy's ``|θ₂| <= 1e-7`` up to rounding but equally sharp near π; in
+        float32 it sees the data's own rounding (~1e-7), so rotations that close
+        to gimbal lock may or may not be flagged.
+
+    Notes
+    -----
+    Strided input is copied once into a contiguous buffer: the kernel reads rows
+    at a fixed stride so that it compiles to SIMD code.
 
     Examples
     --------

@@ -226,9 +226,15 @@ def test_strided_and_read_only_inputs():
     before = view.copy()
     assert np.allclose(qa.as_euler(view, "yzx"), scipy_euler(before, "yzx"))
     assert np.array_equal(view, before)
+    ro = q.copy()
+    ro.flags.writeable = False  # contiguous and read-only: used in place
+    assert np.array_equal(qa.as_euler(ro, "XYX"), qa.as_euler(q, "XYX"))
     a = np.random.default_rng(1).uniform(-3, 3, (3, 400)).T[::3]
     a.flags.writeable = False
     assert np.allclose(qa.from_euler("yzx", a), scipy_quat("yzx", a))
+    c = np.ascontiguousarray(a)
+    c.flags.writeable = False
+    assert np.array_equal(qa.from_euler("yzx", c), qa.from_euler("yzx", a))
 
 
 def test_bad_seq():
