@@ -16,7 +16,8 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, shape_error
+from ._trig import half_arc, sincos
+from ._validate import as_float, check_core, elementwise, is_weak, shape_error
 
 Q = (4,)
 V = (3,)
@@ -44,6 +45,202 @@ def store33(out, i, m):
     out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = m[0], m[1], m[2]
     out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = m[3], m[4], m[5]
     out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = m[6], m[7], m[8]
+
+
+@element
+def store44(out, i, m):
+    for k in range(16):
+        out[i, k // 4, k % 4] = m[k]
+
+
+@element
+def qmatrix(q):
+    """Row-major 3×3 rotation matrix of q/|q| (9-tuple); zero q gives nan."""
+    w, x, y, z = q
+    s = like(w, 2.0) / E.qdot(q, q)
+    one = like(w, 1.0)
+    xx, yy, zz = s * x * x, s * y * y, s * z * z
+    xy, xz, yz = s * x * y, s * x * z, s * y * z
+    wx, wy, wz = s * w * x, s * w * y, s * w * z
+    return (
+        one - yy - zz, xy - wz, xz + wy,
+        xy + wz, one - xx - zz, yz - wx,
+        xz - wy, yz + wx, one - xx - yy,
+    )  # fmt: skip
+
+
+@element
+def det33(a):
+    return (
+        a[0] * (a[4] * a[8] - a[5] * a[7])
+        - a[1] * (a[3] * a[8] - a[5] * a[6])
+        + a[2] * (a[3] * a[7] - a[4] * a[6])
+    )
+
+
+@element
+def cofactor33(a):
+    """Cofactor matrix: equals det(a)·a⁻ᵀ."""
+    return (
+        a[4] * a[8] - a[5] * a[7], a[5] * a[6] - a[3] * a[8], a[3] * a[7] - a[4] * a[6],
+        a[2] * a[7] - a[1] * a[8], a[0] * a[8] - a[2] * a[6], a[1] * a[6] - a[0] * a[7],
+        a[1] * a[5] - a[2] * a[4], a[2] * a[3] - a[0] * a[5], a[0] * a[4] - a[1] * a[3],
+    )  # fmt: skip
+
+
+@element
+def sumsq9(a):
+    s = a[0] * a[0]
+    for k in range(1, 9):
+        s += a[k] * a[k]
+    return s
+
+
+@element
+def near_orthogonal(a):
+    """scipy's test ``np.isclose(a aᵀ, I, atol=1e-12)`` (default rtol 1e-5)."""
+    atol = like(a[0], 1e-12)
+    dtol = atol + like(a[0], 1e-5)
+    one = like(a[0], 1.0)
+    g00 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    g11 = a[3] * a[3] + a[4] * a[4] + a[5] * a[5]
+    g22 = a[6] * a[6] + a[7] * a[7] + a[8] * a[8]
+    g01 = a[0] * a[3] + a[1] * a[4] + a[2] * a[5]
+    g02 = a[0] * a[6] + a[1] * a[7] + a[2] * a[8]
+    g12 = a[3] * a[6] + a[4] * a[7] + a[5] * a[8]
+    return (
+        abs(g00 - one) <= dtol
+        and abs(g11 - one) <= dtol
+        and abs(g22 - one) <= dtol
+        and abs(g01) <= atol
+        and abs(g02) <= atol
+        and abs(g12) <= atol
+    )
+
+
+@element
+def polar33(a, eps):
+    """Orthogonal polar factor of a (det > 0): the nearest rotation, U Vᵀ of an SVD.
+
+    Newton's iteration X ← (ζX + X⁻ᵀ/ζ)/2 with Higham's Frobenius-norm
+    scaling ζ; quadratic convergence, so once a step moves less than √eps
+    the iterate is exact to rounding.
+    """
+    half = like(eps, 0.5)
+    tol = np.sqrt(eps)
+    x = a
+    for _ in range(40):
+        c = cofactor33(x)
+        d = det33(x)
+        # ‖X⁻¹‖_F / ‖X‖_F = ‖cof X‖_F / (|det X| ‖X‖_F)
+        zeta = np.sqrt(np.sqrt(sumsq9(c) / sumsq9(x)) / abs(d))
+        f = half * zeta
+        g = half / (zeta * d)
+        nx = (
+            f * x[0] + g * c[0], f * x[1] + g * c[1], f * x[2] + g * c[2],
+            f * x[3] + g * c[3], f * x[4] + g * c[4], f * x[5] + g * c[5],
+            f * x[6] + g * c[6], f * x[7] + g * c[7], f * x[8] + g * c[8],
+        )  # fmt: skip
+        step = sumsq9((
+            nx[0] - x[0], nx[1] - x[1], nx[2] - x[2],
+            nx[3] - x[3], nx[4] - x[4], nx[5] - x[5],
+            nx[6] - x[6], nx[7] - x[7], nx[8] - x[8],
+        ))  # fmt: skip
+        x = nx
+        if not step > tol * tol:  # also stops on nan
+            break
+    return x
+
+
+@element
+def shepperd(a):
+    """Unit quaternion of a rotation matrix (9-tuple), branching on the largest of
+    the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
+    the component picked by the branch comes out positive."""
+    one = like(a[0], 1.0)
+    two = like(a[0], 2.0)
+    tr = a[0] + a[4] + a[8]
+    choice = 0
+    best = a[0]
+    if a[4] > best:
+        choice, best = 1, a[4]
+    if a[8] > best:
+        choice, best = 2, a[8]
+    if tr > best:
+        choice = 3
+    if choice == 0:
+        q = (a[7] - a[5], one - tr + two * a[0], a[3] + a[1], a[6] + a[2])
+    elif choice == 1:
+        q = (a[2] - a[6], a[3] + a[1], one - tr + two * a[4], a[7] + a[5])
+    elif choice == 2:
+        q = (a[3] - a[1], a[6] + a[2], a[7] + a[5], one - tr + two * a[8])
+    else:
+        q = (one + tr, a[7] - a[5], a[2] - a[6], a[3] - a[1])
+    return E.qnormalize(q)
+
+
+@element
+def canonical_flip(q):
+    """True when scipy's canonical form (w > 0, ties to the first non-zero of
+    x, y, z being positive) needs the sign of q flipped. (Bitwise operators,
+    not ``and``/``or``: no branches, so row loops stay vectorisable.)"""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    return (w < zero) | ((w == zero) & ((x < zero) | ((x == zero) & ((y < zero) | ((y == zero) & (z < zero))))))
+
+
+@element
+def qrotvec(q):
+    """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
+    θ = 2 atan2(|u|, |w|) in [0, π]."""
+    w, x, y, z = q
+    un = E.vnorm((x, y, z))
+    aw = abs(w)
+    two = like(w, 2.0)
+    f = two * half_arc(un, aw) / un
+    f = (two / aw) if un == like(w, 0.0) else f  # identity: 0·f = 0; zero q: 0·inf = nan
+    f = -f if canonical_flip(q) else f
+    return (f * x, f * y, f * z)
+
+
+@element
+def qaxis_angle(q):
+    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan."""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    un = E.vnorm((x, y, z))
+    aw = abs(w)
+    ang = like(w, 2.0) * half_arc(un, aw)
+    if un == zero:
+        if aw > zero:
+            return (like(w, 1.0), zero, zero), ang
+        nan = like(w, np.nan)
+        return (nan, nan, nan), nan
+    k = -un if canonical_flip(q) else un
+    return (x / k, y / k, z / k), ang
+
+
+@element
+def half_sinc(h, s):
+    """sin(h)/(2h) given s = sin h; a series for tiny h (exact to rounding)."""
+    h2 = h * h
+    series = like(h, 0.5) - h2 * (like(h, 1.0 / 12.0) - h2 * like(h, 1.0 / 240.0))
+    return series if h < like(h, 1e-4) else like(h, 0.5) * s / h
+
+
+@element
+def rotvec_quat(v):
+    """exp of (0, v/2): (cos(θ/2), sin(θ/2)/θ · v), θ = |v|; exact for tiny θ."""
+    h = like(v[0], 0.5) * E.vnorm(v)
+    s, c = sincos(h)
+    k = half_sinc(h, s)
+    return (c, k * v[0], k * v[1], k * v[2])
+
+
+@element
+def store44(out, i, m):
+    for k in range(16):
+        out[i, k // 4, k % 4] = m[k]
 
 
 @element
@@ -284,30 +481,27 @@ def _from_matrix_valid(m, out):
 
 
 @rowloop
-def _as_rotvec(q, scale, out):
+def _as_rotvec(q, out):
     for i in prange(q.shape[0]):
-        r = qrotvec(E.load4(q, i))
-        s = scale[i]
-        E.store3(out, i, (s * r[0], s * r[1], s * r[2]))
+        E.store3(out, i, qrotvec(E.load4(q, i)))
 
 
 @rowloop
-def _from_rotvec(r, scale, out):
+def _from_rotvec(r, out):
     for i in prange(r.shape[0]):
-        s = scale[i]
-        E.store4(out, i, rotvec_quat((s * r[i, 0], s * r[i, 1], s * r[i, 2])))
+        E.store4(out, i, rotvec_quat(E.load3(r, i)))
 
 
 @rowloop
-def _as_axis_angle(q, scale, axis, ang):
+def _as_axis_angle(q, axis, ang):
     for i in prange(q.shape[0]):
         u, a = qaxis_angle(E.load4(q, i))
         E.store3(axis, i, u)
-        ang[i] = a * scale[i]
+        ang[i] = a
 
 
 @rowloop
-def _from_axis_angle(axis, ang, scale, out):
+def _from_axis_angle(axis, ang, out):
     # Returns the first row whose axis is zero (its output is nan), or -1.
     n = axis.shape[0]
     bad = n
@@ -316,9 +510,9 @@ def _from_axis_angle(axis, ang, scale, out):
         un = E.vnorm(u)
         if un == like(un, 0.0):
             bad = min(bad, i)
-        h = like(un, 0.5) * ang[i] * scale[i]
-        k = np.sin(h) / un
-        c = np.cos(h)
+        h = like(un, 0.5) * ang[i]
+        sn, c = sincos(h)
+        k = sn / un
         if not np.isfinite(un):
             c = like(un, np.nan)  # a nan or inf axis gives nan, not (cos h, nan, …)
         E.store4(out, i, (c, k * u[0], k * u[1], k * u[2]))
@@ -342,17 +536,13 @@ def _from_xyzw(a, out):
 @rowloop
 def _as_left_matrix(q, out):
     for i in prange(q.shape[0]):
-        m = left_matrix(E.load4(q, i))
-        for k in range(16):
-            out[i, k // 4, k % 4] = m[k]
+        store44(out, i, left_matrix(E.load4(q, i)))
 
 
 @rowloop
 def _as_right_matrix(q, out):
     for i in prange(q.shape[0]):
-        m = right_matrix(E.load4(q, i))
-        for k in range(16):
-            out[i, k // 4, k % 4] = m[k]
+        store44(out, i, right_matrix(E.load4(q, i)))
 
 
 @rowloop
@@ -403,14 +593,15 @@ def _row_name(index, lead):
     return f"index {tuple(int(k) for k in np.unravel_index(index, lead))}"
 
 
-def _to_unit(degrees):
-    """Factor from radians to the output unit."""
-    return _TO_DEG if degrees else 1.0
-
-
-def _from_unit(degrees):
-    """Factor from the input unit to radians."""
-    return _FROM_DEG if degrees else 1.0
+def _radians(x, name, degrees):
+    """`x` as a float array, converted from degrees if asked (a Python float
+    factor, so float32 stays float32). The kernels work in radians only:
+    a unit factor inside a row loop costs more than this extra pass."""
+    if not degrees:
+        return x
+    if is_weak(x):
+        return float(x) * _FROM_DEG
+    return as_float(x, name) * _FROM_DEG
 
 
 # --------------------------------------------------------------------------
@@ -533,7 +724,10 @@ def as_rotvec(q, degrees=False, out=None):
     >>> np.round(qa.as_rotvec([0, 1, 0, 0], degrees=True), 12)
     array([180.,   0.,   0.])
     """
-    return elementwise(_as_rotvec, [(q, "q", Q), (_to_unit(degrees), "degrees", ())], [V], out)
+    res = elementwise(_as_rotvec, [(q, "q", Q)], [V], out)
+    if degrees:
+        res *= _TO_DEG
+    return res
 
 
 def from_rotvec(r, degrees=False, out=None):
@@ -562,7 +756,7 @@ def from_rotvec(r, degrees=False, out=None):
     >>> qa.from_rotvec([1e-12, 0, 0])
     array([1.e+00, 5.e-13, 0.e+00, 0.e+00])
     """
-    return elementwise(_from_rotvec, [(r, "r", V), (_from_unit(degrees), "degrees", ())], [Q], out)
+    return elementwise(_from_rotvec, [(_radians(r, "r", degrees), "r", V)], [Q], out)
 
 
 def as_axis_angle(q, degrees=False):
@@ -591,7 +785,8 @@ def as_axis_angle(q, degrees=False):
     >>> qa.as_axis_angle(qa.identity())
     (array([1., 0., 0.]), np.float64(0.0))
     """
-    return elementwise(_as_axis_angle, [(q, "q", Q), (_to_unit(degrees), "degrees", ())], [V, ()])
+    axis, ang = elementwise(_as_axis_angle, [(q, "q", Q)], [V, ()])
+    return axis, (ang * _TO_DEG if degrees else ang)
 
 
 def from_axis_angle(axis, angle, degrees=False, out=None):
@@ -622,7 +817,7 @@ def from_axis_angle(axis, angle, degrees=False, out=None):
     array([[1., 0., 0., 0.],
            [0., 0., 1., 0.]])
     """
-    inputs = [(axis, "axis", V), (angle, "angle", ()), (_from_unit(degrees), "degrees", ())]
+    inputs = [(axis, "axis", V), (_radians(angle, "angle", degrees), "angle", ())]
     res, bad = _with_status(_from_axis_angle, inputs, [Q], out)
     if bad >= 0:
         raise ValueError(

@@ -217,6 +217,11 @@ def test_from_axis_angle(rng):
     assert got.dtype == np.float32 and got.shape == (5, 4)
     assert np.allclose(got[-1], [0, 0, 0, 1], atol=1e-7)
     assert qa.from_axis_angle([1, 0, 0], 1.0).shape == (4,)
+    f32 = qa.from_axis_angle(np.float32([0, 0, 1]), 90, degrees=True)  # a Python angle never upcasts
+    assert f32.dtype == np.float32 and np.allclose(f32, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
+    assert qa.from_rotvec(np.float32([0, 0, 90]), degrees=True).dtype == np.float32
+    assert qa.as_rotvec(np.float32([1, 0, 0, 1]), degrees=True).dtype == np.float32
+    assert qa.as_axis_angle(np.float32([1, 0, 0, 1]), degrees=True)[1].dtype == np.float32
     with pytest.raises(ValueError, match=r"`axis`.*row 2"):
         qa.from_axis_angle([[1, 0, 0], [0, 1, 0], [0, 0, 0]], 1.0)
     with pytest.raises(ValueError, match=r"`axis`.*index \(1, 0\)"):
