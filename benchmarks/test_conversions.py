@@ -22,32 +22,15 @@ default ``nonorthogonal=True`` run a Python loop of eigen-decompositions
 
 import numpy as np
 import pytest
-from conftest import SIZES, arrays, run
+from conftest import LIBS, SIZES, arrays, need, npq, qn, run
 
 import quatarray as qa
 
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
 
-try:
-    import quaternion as npq
-except ImportError:  # pragma: no cover - optional competitor
-    npq = None
-try:
-    import quaternionic as qn
-except ImportError:  # pragma: no cover - optional competitor
-    qn = None
-
-LIBS = ["quatarray", "quatarray-f32", "scipy", "numpy-quaternion", "quaternionic"]
 SLOW_LOOP_MAX = 1_000  # largest N for the competitors' Python-loop paths
 
 _DERIVED = {}
-
-
-def _need(lib):
-    if lib == "numpy-quaternion" and npq is None:
-        pytest.skip("numpy-quaternion is not installed")
-    if lib == "quaternionic" and qn is None:
-        pytest.skip("quaternionic is not installed")
 
 
 def _derived(n, dtype):
@@ -100,7 +83,7 @@ def _slow(benchmark, fn, n):
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
 @pytest.mark.parametrize("lib", LIBS)
 def test_as_matrix(benchmark, lib, n):
-    _need(lib)
+    need(lib)
     q = _data(lib, n)["q"]
     benchmark.group = f"as_matrix N={n}"
     if lib.startswith("quatarray"):
@@ -121,7 +104,7 @@ def test_as_matrix(benchmark, lib, n):
 @pytest.mark.parametrize("lib", LIBS)
 def test_from_matrix(benchmark, lib, n):
     """Default path: checks and the nearest rotation of non-orthogonal input (here all orthogonal)."""
-    _need(lib)
+    need(lib)
     m = _data(lib, n)["m"]
     benchmark.group = f"from_matrix N={n}"
     if lib.startswith("quatarray"):
@@ -141,7 +124,7 @@ def test_from_matrix(benchmark, lib, n):
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
 @pytest.mark.parametrize("lib", LIBS)
 def test_from_matrix_assume_valid(benchmark, lib, n):
-    _need(lib)
+    need(lib)
     m = _data(lib, n)["m"]
     benchmark.group = f"from_matrix assume_valid N={n}"
     if lib.startswith("quatarray"):
@@ -174,7 +157,7 @@ def test_from_matrix_non_orthogonal(benchmark, lib, n):
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
 @pytest.mark.parametrize("lib", LIBS)
 def test_as_rotvec(benchmark, lib, n):
-    _need(lib)
+    need(lib)
     q = _data(lib, n)["q"]
     benchmark.group = f"as_rotvec N={n}"
     if lib.startswith("quatarray"):
@@ -194,7 +177,7 @@ def test_as_rotvec(benchmark, lib, n):
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
 @pytest.mark.parametrize("lib", LIBS)
 def test_from_rotvec(benchmark, lib, n):
-    _need(lib)
+    need(lib)
     r = _data(lib, n)["r"]
     benchmark.group = f"from_rotvec N={n}"
     if lib.startswith("quatarray"):
