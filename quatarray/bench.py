@@ -476,8 +476,16 @@ def run(n=None, json_path=None, budget=1.0, stream=None):
     if n < 1:
         raise ValueError(f"Expected `n` to be a positive number of quaternions, got {n}.")
     t0 = time.perf_counter()
-    ceil, rows = results(n, budget)
+    progress = None
+    if stream is sys.stdout and sys.stderr.isatty():
+
+        def progress(op):
+            print(f"\r\033[Kmeasuring {op} ...", end="", file=sys.stderr, flush=True)
+
+    ceil, rows = results(n, budget, progress=progress)
     over = overhead()
+    if progress:
+        print("\r\033[K", end="", file=sys.stderr, flush=True)
     text = table(n, ceil, rows, over)
     print(text, file=stream)
     print(f"(measured in {time.perf_counter() - t0:.0f} s)", file=stream)
