@@ -679,10 +679,12 @@ def _window(x, a, b):
 
 
 def _materialise(x, name):
-    """A 1-D float64 numpy array of `x` (a Dask array is computed: times are small next to keys)."""
+    """`x` as a 1-D numpy array (a Dask array is computed: times are small next to keys)."""
     if isinstance(x, da.Array):
         x = x.compute()
-    a = as_float(x, name, np.float64)
+    a = np.asarray(x)
+    if a.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `{name}` to have a real dtype, got {a.dtype}.")
     if a.ndim != 1:
         raise ValueError(f"Expected `{name}` to have shape (N,), got {a.shape}.")
     return a
@@ -693,21 +695,24 @@ def _spline_task(times, keys, new_times, method):
         return qa.spline(times, keys, new_times, method=method)
 
 
-def _check_spline_times(t, nt, k):
-    if t.shape[0] != k:
-        raise ValueError(f"Expected `times` to have shape ({k},) like `keys`, got {t.shape}.")
-    if k < 2:
-        raise ValueError(f"Expected at least 2 keys, got {k}.")
-    d = np.diff(t)
-    if not np.all(d > 0):
-        i = int(np.argmin(d > 0)) + 1
-        raise ValueError(f"Expected `times` to be strictly increasing; times[{i}] = {t[i]!r} after {t[i - 1]!r}.")
+def _plan_times(times, new_times, k):
+    """Float times for planning, checked with the in-memory messages (integer stamps stay exact)."""
+    from .interpolation import _times
+
+    t_raw = _times(times, k)
+    if t_raw.dtype.kind in "biu" and new_times.dtype.kind in "biu":
+        t = (t_raw - t_raw[0]).astype(np.float64)
+        nt = (new_times.astype(np.int64) - np.int64(t_raw[0])).astype(np.float64)
+    else:
+        t, nt = t_raw.astype(np.float64), new_times.astype(np.float64)
     bad = ~((nt >= t[0]) & (nt <= t[-1]))
     if bad.any():
         i = int(np.argmax(bad))
         raise ValueError(
-            f"Expected `new_times` inside [{t[0]!r}, {t[-1]!r}]; new_times[{i}] = {nt[i]!r} is outside."
+            f"Expected `new_times` within [{t_raw[0]!r}, {t_raw[-1]!r}] (the key times), "
+            f"got {new_times[i]!r} at flat index {i}."
         )
+    return t, nt
 
 
 def _output_chunks(nt, t, key_chunks, chunks, given):
@@ -768,21 +773,24 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     >>> np.allclose(lazy.compute(), qa.spline(t, keys, nt), rtol=0, atol=1e-13)
     True
     """
+    from .interpolation import _SPLINE
+
+    if method not in _SPLINE:
+        raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
     given = new_times.chunks[0] if isinstance(new_times, da.Array) else None
-    t = _materialise(times, "times")
-    nt = _materialise(new_times, "new_times")
+    t_raw = _materialise(times, "times")
+    nt_raw = _materialise(new_times, "new_times")
     x = as_dask(keys, "keys", Q)
     if x.ndim != 2:
         raise ValueError(f"Expected `keys` to have shape (K, 4), got {tuple(x.shape)}.")
-    if method not in ("bezier", "slerp", "nlerp", "squad"):
-        raise ValueError(f"Expected `method` to be one of 'bezier', 'slerp', 'nlerp', 'squad', got {method!r}.")
     k = x.shape[0]
-    _check_spline_times(t, nt, k)
-    x = x.astype(as_float(np.empty(0, x.dtype), "keys").dtype)
-    u = unflip(x)
-    dtype = qa.spline(t[:2], np.array([[1, 0, 0, 0], [0, 1, 0, 0]], x.dtype), t[:1], method=method).dtype
+    if k < 2:
+        raise ValueError(f"Expected `keys` to hold at least 2 keys, got {k}.")
+    t, nt = _plan_times(t_raw, nt_raw, k)
+    dtype = as_float(np.empty(0, x.dtype), "keys").dtype
+    u = unflip(x.astype(dtype))
     sizes = _output_chunks(nt, t, x.chunks[0], chunks, given)
-    token = tokenize("spline", t, u, nt, method, sizes)
+    token = tokenize("spline", t_raw, u, nt_raw, method, sizes)
     name = f"spline-{token}"
     dsk = {}
     a = 0
@@ -793,7 +801,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
             continue
         seg = np.clip(np.searchsorted(t, part, side="right") - 1, 0, k - 2)
         w0, w1 = max(0, int(seg.min()) - 1), min(k, int(seg.max()) + 3)
-        dsk[(name, j, 0)] = (_spline_task, t[w0:w1], _window(u, w0, w1), part, method)
+        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(u, w0, w1), nt_raw[a : a + n], method)
         a += n
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[u])
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))

@@ -159,8 +159,8 @@ def test_elementwise_bitwise(client, q, name, rows):
 
 def test_from_su2_bitwise(client):
     m = qa.as_su2(qa.random(50, rng=4))
-    got = run(client, qd.from_su2(chunked(m, 7)))
-    assert same(got, qa.from_su2(m))
+    expect = qa.from_su2(m)
+    assert same(run(client, qd.from_su2(chunked(m, 7))), expect)
     m32 = m.astype(np.complex64)
     assert qd.from_su2(chunked(m32, 7)).dtype == np.float32
 
@@ -170,10 +170,12 @@ def test_float32_and_weak_scalars(client, q):
     q32 = q[:300].astype(np.float32)
     lazy = qd.slerp(chunked(p32, 64), chunked(q32, 64), 0.25)  # a Python t never upcasts
     assert lazy.dtype == np.float32
-    assert same(run(client, lazy), qa.slerp(p32, q32, 0.25))
+    expect = qa.slerp(p32, q32, 0.25)
+    assert same(run(client, lazy), expect)
     mixed = qd.multiply(chunked(p32, 64), chunked(q[:300], 50))
     assert mixed.dtype == np.float64
-    assert same(run(client, mixed), qa.multiply(p32, q[:300]))
+    expect = qa.multiply(p32, q[:300])
+    assert same(run(client, mixed), expect)
     assert qd.as_su2(chunked(q32, 64)).dtype == np.complex64
 
 
@@ -181,13 +183,16 @@ def test_broadcasting_and_numpy_mixing(client, q):
     p = qa.random((5, 1), rng=7)  # numpy (5, 1, 4) against Dask (997, 4) → (5, 997, 4)
     lazy = qd.multiply(p, chunked(q, 300))
     assert lazy.shape == (5, 997, 4)
-    assert same(run(client, lazy), qa.multiply(p, q))
+    expect = qa.multiply(p, q)
+    assert same(run(client, lazy), expect)
     one = qd.rotate(q[0], chunked(np.ones((40, 3)), 9))  # a single quaternion against many vectors
-    assert same(run(client, one), qa.rotate(q[0], np.ones((40, 3))))
+    expect = qa.rotate(q[0], np.ones((40, 3)))
+    assert same(run(client, one), expect)
     # a scalar t against N pairs, one pair against M t
     t = np.linspace(0, 1, 31)
     lazy = qd.slerp(q[10], q[11], chunked(t, 4))
-    assert same(run(client, lazy), qa.slerp(q[10], q[11], t))
+    expect = qa.slerp(q[10], q[11], t)
+    assert same(run(client, lazy), expect)
 
 
 def test_core_axis_chunks_are_rechunked(q):
@@ -264,8 +269,8 @@ def test_results_stay_lazy():
 @pytest.mark.parametrize("rows", [1, 7, 128, 1000])
 def test_cumprod_any_chunking(client, rows):
     q = stream(120 if rows == 1 else 1000, seed=rows)  # chunks of one row: fewer rows, same logic
-    got = run(client, qd.cumprod(chunked(q, rows)))
     expect = qa.cumprod(q)
+    got = run(client, qd.cumprod(chunked(q, rows)))
     np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13)
     if rows == len(q):
         assert same(got, expect)  # one chunk: the very same sequence of products
@@ -274,12 +279,13 @@ def test_cumprod_any_chunking(client, rows):
 def test_cumprod_axes_and_float32(client):
     q = stream(600, seed=9).reshape(20, 30, 4)
     for axis, chunks in ((0, (3, 7, 4)), (1, (20, 4, 4)), (-1, (6, 30, 4))):
+        expect = qa.cumprod(q, axis=axis)
         got = run(client, qd.cumprod(da.from_array(q, chunks=chunks), axis=axis))
-        np.testing.assert_allclose(got, qa.cumprod(q, axis=axis), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13)
     q32 = q.astype(np.float32)
     lazy = qd.cumprod(da.from_array(q32, chunks=(3, 30, 4)))
     assert lazy.dtype == np.float32
-    np.testing.assert_allclose(run(client, lazy), qa.cumprod(q32), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(lazy.compute(scheduler="sync"), qa.cumprod(q32), rtol=0, atol=1e-5)
     with pytest.raises(ValueError, match="`axis` in"):
         qd.cumprod(da.from_array(q), axis=2)
     with pytest.raises(ValueError, match=r"shape \(N, \.\.\., 4\)"):
@@ -289,9 +295,9 @@ def test_cumprod_axes_and_float32(client):
 @needs("interpolation")
 @pytest.mark.parametrize("rows", [1, 2, 13, 500])
 def test_unflip_bitwise_any_chunking(client, rows):
-    q = stream(500, seed=rows)
-    got = run(client, qd.unflip(chunked(q, rows)))
-    assert same(got, qa.unflip(q))
+    q = stream(120 if rows == 1 else 500, seed=rows)
+    expect = qa.unflip(q)
+    assert same(run(client, qd.unflip(chunked(q, rows))), expect)
 
 
 @needs("interpolation")
@@ -300,7 +306,167 @@ def test_unflip_flip_exactly_on_borders(client):
     q[8::8] *= -1  # every chunk of 8 starts with a flip
     q[16:24] *= -1  # a whole chunk flipped
     for rows in (8, 4, 16):
-        assert same(run(client, qd.unflip(chunked(q, rows))), qa.unflip(q))
+        expect = qa.unflip(q)
+        assert same(run(client, qd.unflip(chunked(q, rows))), expect)
     q3 = np.stack([q, -q[::-1]], axis=1)  # (64, 2, 4): two streams side by side
-    got = run(client, qd.unflip(da.from_array(q3, chunks=(8, 1, 4))))
-    assert same(got, qa.unflip(q3))
+    expect = qa.unflip(q3)
+    assert same(run(client, qd.unflip(da.from_array(q3, chunks=(8, 1, 4)))), expect)
+
+
+# --------------------------------------------------------------------------
+# neighbours across chunk borders: spline and angular_velocity
+
+
+def keyed(k=60, seed=0, even=False):
+    rng = np.random.default_rng(seed)
+    t = np.arange(k, dtype=float) if even else np.cumsum(rng.uniform(0.3, 1.7, k))
+    return t, stream(k, seed=seed)
+
+
+@needs("interpolation")
+@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
+@pytest.mark.parametrize("rows", [1, 3, 10, 60])
+def test_spline_any_chunking(client, method, rows):
+    t, keys = keyed(60, seed=rows, even=method == "slerp")
+    rng = np.random.default_rng(rows)
+    nt = np.sort(np.concatenate([rng.uniform(t[0], t[-1], 400), t, [t[0], t[-1]]]))  # on keys and borders
+    expect = qa.spline(t, keys, nt, method=method)  # in memory first: workers then load the compiled kernels
+    lazy = qd.spline(t, chunked(keys, rows), nt, method=method)
+    assert isinstance(lazy, da.Array) and lazy.shape == (len(nt), 4)
+    np.testing.assert_allclose(run(client, lazy), expect, rtol=0, atol=1e-13)
+
+
+@needs("interpolation")
+def test_spline_output_chunks_and_order(client):
+    t, keys = keyed(40, seed=4)
+    rng = np.random.default_rng(4)
+    nt = rng.uniform(t[0], t[-1], 300)  # unsorted
+    expect = qa.spline(t, keys, nt)
+    for new_times, chunks in ((nt, None), (nt, 1), (nt, 37), (da.from_array(nt, chunks=50), None)):
+        lazy = qd.spline(t, chunked(keys, 6), new_times, chunks=chunks)
+        if chunks == 37:
+            assert lazy.chunks[0][0] == 37
+        np.testing.assert_allclose(run(client, lazy), expect, rtol=0, atol=1e-13)
+    k32 = keys.astype(np.float32)
+    expect = qa.spline(t, k32, nt)
+    lazy = qd.spline(t, chunked(k32, 7), nt)
+    assert lazy.dtype == np.float32
+    np.testing.assert_allclose(lazy.compute(scheduler="sync"), expect, rtol=0, atol=1e-6)
+
+
+@needs("interpolation")
+def test_spline_integer_stamps_and_errors():
+    t = 1_600_000_000_000_000_000 + np.arange(30, dtype=np.int64) * 10_000_000  # ns since the epoch
+    keys = stream(30, seed=5)
+    nt = t[0] + np.arange(0, 290_000_000, 1_000_000, dtype=np.int64)
+    got = qd.spline(t, chunked(keys, 4), nt).compute(scheduler="sync")
+    np.testing.assert_allclose(got, qa.spline(t, keys, nt), rtol=0, atol=1e-13)
+    x = chunked(keys, 4)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        qd.spline(t[::-1], x, nt)
+    with pytest.raises(ValueError, match="`new_times` within"):
+        qd.spline(t, x, np.append(nt, t[-1] + 1))
+    with pytest.raises(ValueError, match="method"):
+        qd.spline(t, x, nt, method="cubic")
+    with pytest.raises(ValueError, match=r"shape \(30,\)"):
+        qd.spline(t[:-1], x, nt)
+
+
+@needs("interpolation")
+def test_spline_stays_lazy_in_the_keys():
+    t = np.arange(100.0)
+    lazy = qd.spline(t, exploding((100, 4), 10), np.linspace(0, 99, 1000))
+    assert isinstance(lazy, da.Array) and lazy.numblocks == (10, 1)
+    with pytest.raises(RuntimeError, match="was computed"):
+        lazy.compute(scheduler="sync")
+
+
+@needs("interpolation")
+@pytest.mark.parametrize("rows", [1, 9, 200])
+@pytest.mark.parametrize("frame", ["space", "body"])
+def test_angular_velocity_bitwise_any_chunking(client, rows, frame):
+    t, q = keyed(60 if rows == 1 else 200, seed=rows)
+    expect = qa.angular_velocity(q, t, frame=frame)
+    lazy = qd.angular_velocity(chunked(q, rows), da.from_array(t, chunks=13), frame=frame)
+    assert lazy.chunks[0] == chunked(q, rows).chunks[0]
+    assert same(run(client, lazy), expect)
+
+
+# --------------------------------------------------------------------------
+# files: the command line's --scheduler path
+
+
+@pytest.fixture(scope="module")
+def npy_stream(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dask-files")
+    q = stream(5000, seed=11)
+    np.save(folder / "q.npy", q)
+    np.save(folder / "xyzw32.npy", q[:, [1, 2, 3, 0]].astype(np.float32))
+    return folder
+
+
+@pytest.mark.parametrize("to", ["quat", "xyzw", "matrix", "rotvec", "axis-angle", "euler:ZXY"])
+def test_convert_file_equals_cli(client, npy_stream, to, capsys):
+    from quatarray.cli import main
+
+    src, dst, ref = npy_stream / "q.npy", npy_stream / f"d-{to}.npy", npy_stream / f"m-{to}.npy"
+    extra = ["--degrees"] if to in ("rotvec", "euler:ZXY") else []
+    assert main(["convert", str(src), str(ref), "--to", to, "--chunk", "700", *extra]) == 0
+    assert qd.convert_file(src, dst, to, degrees=bool(extra), chunk=700, scheduler=client) == 0
+    assert same(np.load(dst), np.load(ref))
+    assert "normalised 5000 non-unit quaternions" in capsys.readouterr().err
+
+
+def test_convert_file_layout_float32_threads(npy_stream):
+    src, dst = npy_stream / "xyzw32.npy", npy_stream / "t.npy"
+    qd.convert_file(src, dst, "quat", layout="xyzw", chunk=999, scheduler=None)
+    out = np.load(dst)
+    assert out.dtype == np.float32
+    np.testing.assert_allclose(out, qa.normalize(np.load(npy_stream / "q.npy")), atol=1e-6)
+
+
+def test_convert_file_errors_leave_no_output(client, npy_stream):
+    from quatarray.io.errors import DataError, UsageError
+
+    q = np.load(npy_stream / "q.npy")
+    q[3210] = np.nan
+    np.save(npy_stream / "bad.npy", q)
+    dst = npy_stream / "never.npy"
+    with pytest.raises(DataError, match=r"bad\.npy: row 3210: quaternion is not finite"):
+        qd.convert_file(npy_stream / "bad.npy", dst, "matrix", chunk=1000, scheduler=client)
+    assert not dst.exists() and not [p for p in npy_stream.iterdir() if p.name.startswith(".never")]
+    with pytest.raises(UsageError, match="the output is the input"):
+        qd.convert_file(npy_stream / "q.npy", npy_stream / "q.npy", "quat")
+    with pytest.raises(UsageError, match="exists"):
+        qd.convert_file(npy_stream / "q.npy", npy_stream / "bad.npy", "quat")
+    with pytest.raises(UsageError, match="--to"):
+        qd.convert_file(npy_stream / "q.npy", dst, "euler:XXY")
+
+
+@needs("interpolation")
+@pytest.mark.parametrize("method", ["bezier", "slerp"])
+def test_resample_file_equals_cli(client, npy_stream, method):
+    from quatarray.cli import main
+
+    src = npy_stream / "q.npy"
+    dst, ref = npy_stream / f"r-{method}.npy", npy_stream / f"rm-{method}.npy"
+    assert main(["resample", str(src), str(ref), "--rate", "7", "--in-rate", "2", "--method", method,
+                 "--chunk", "800", "--force"]) == 0
+    assert qd.resample_file(src, dst, rate=7, in_rate=2, method=method, chunk=800, scheduler=client) == 0
+    got, expect = np.load(dst), np.load(ref)
+    assert got.shape == expect.shape == (17497, 4)  # 0 … 2499.5 s at 7 Hz
+    np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13)
+
+
+@needs("interpolation")
+def test_resample_file_times_and_text_input(npy_stream, data_dir):
+    t = np.linspace(0.0, 2000.0, 333)
+    np.save(npy_stream / "nt.npy", t)
+    dst = npy_stream / "rt.npy"
+    qd.resample_file(npy_stream / "q.npy", dst, times=npy_stream / "nt.npy", in_rate=2, chunk=100)
+    q = np.load(npy_stream / "q.npy")
+    np.testing.assert_allclose(np.load(dst), qa.spline(np.arange(5000) / 2, q, t), rtol=0, atol=1e-13)
+    # a real recording with a time column is read on the client and resampled on the workers
+    src = data_dir / "tum_freiburg1_xyz_groundtruth.txt"
+    qd.resample_file(src, dst, rate=200, chunk=5000, force=True, scheduler=None)
+    assert np.load(dst).shape[1] == 4 and np.isfinite(np.load(dst)).all()
