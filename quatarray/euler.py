@@ -29,7 +29,7 @@ from numba.extending import overload
 
 from . import _elements as E
 from ._jit import CACHE, element, like, prange, rowloop
-from ._validate import as_float, check_core, shape_error
+from ._validate import as_float, check_core
 
 _ALLOWED = (
     "Expected `seq` to be three axes from 'x', 'y', 'z' (lower case: extrinsic) or "
@@ -292,18 +292,39 @@ def _from_euler_far(angles, a0, a1, a2, intrinsic, unit, out, far):
 # public functions
 
 
+def _seq_params(seq):
+    """(axes 0..2 in the order of ``seq``, intrinsic, the as_euler kernel's
+    sequence arguments) for a valid ``seq``."""
+    axes = tuple("xyz".index(ch) for ch in seq.lower())
+    intrinsic = seq.isupper()
+    # Bernardes & Viollet work on the extrinsic order: reverse intrinsic sequences
+    i, j, k = axes[::-1] if intrinsic else axes
+    tait_bryan = i != k
+    if not tait_bryan:
+        k = 3 - i - j  # the remaining axis
+    sign = (i - j) * (j - k) * (k - i) // 2  # parity of (i, j, k): ±1
+    lamb = math.pi / 2 if tait_bryan else 0.0
+    return axes, intrinsic, (i + 1, j + 1, k + 1, int(tait_bryan), sign, not intrinsic, lamb)
+
+
+_SEQS = {
+    s: _seq_params(s)
+    for a in "xyz"
+    for b in "xyz"
+    for c in "xyz"
+    if a != b and b != c
+    for s in (a + b + c, (a + b + c).upper())
+}
+
+
 def _parse_seq(seq):
-    """``seq`` → (axis indices 0..2 in the given order, intrinsic)."""
+    """Look ``seq`` up among the 24 valid sequences (see :func:`_seq_params`)."""
     if not isinstance(seq, str):
         raise TypeError(f"{_ALLOWED}; got {type(seq).__name__} {seq!r}.")
-    if (
-        len(seq) != 3
-        or not (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
-        or seq[0] == seq[1]
-        or seq[1] == seq[2]
-    ):
+    params = _SEQS.get(seq)
+    if params is None:
         raise ValueError(f"{_ALLOWED}; got {seq!r}.")
-    return ["xyz".index(ch) for ch in seq.lower()], seq.isupper()
+    return params
 
 
 def _rows(a, core):
@@ -363,19 +384,12 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     >>> np.round(qa.as_euler([1, 0, 0, 0], "ZXZ", suppress_warnings=True), 9)  # gimbal lock
     array([0., 0., 0.])
     """
-    axes, intrinsic = _parse_seq(seq)
+    _, _, params = _parse_seq(seq)
     a = check_core(as_float(q, "q"), "q", (4,))
-    i, j, k = axes if not intrinsic else axes[::-1]
-    tait_bryan = i != k
-    if not tait_bryan:
-        k = 3 - i - j
-    sign = (i - j) * (j - k) * (k - i) // 2
     flat = _rows(a, (4,))
     out = np.empty((flat.shape[0], 3), a.dtype)
     flags = np.empty(flat.shape[0], np.bool_)
-    scale = 180.0 / math.pi if degrees else 1.0
-    lamb = math.pi / 2 if tait_bryan else 0.0
-    _as_euler(flat, i + 1, j + 1, k + 1, int(tait_bryan), sign, not intrinsic, lamb, scale, out, flags)
+    _as_euler(flat, *params, 180.0 / math.pi if degrees else 1.0, out, flags)
     locked = np.count_nonzero(flags) if not suppress_warnings else 0
     if locked:
         warnings.warn(_GIMBAL.format(n=locked, total=flat.shape[0]), UserWarning, stacklevel=2)
@@ -410,10 +424,8 @@ def from_euler(seq, angles, degrees=False):
     >>> qa.from_euler("ZYX", np.zeros((2, 5, 3))).shape
     (2, 5, 4)
     """
-    axes, intrinsic = _parse_seq(seq)
-    a = as_float(angles, "angles")
-    if a.ndim == 0 or a.shape[-1] != 3:
-        raise shape_error("angles", "(..., 3)", a.shape)
+    axes, intrinsic, _ = _parse_seq(seq)
+    a = check_core(as_float(angles, "angles"), "angles", (3,))
     flat = _rows(a, (3,))
     out = np.empty((flat.shape[0], 4), a.dtype)
     far = np.empty(flat.shape[0], np.bool_)
