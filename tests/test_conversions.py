@@ -168,6 +168,8 @@ def test_from_rotvec_matches_scipy(rng, dtype):
     assert got.dtype == dtype
     assert np.allclose(got, SQ(Rotation.from_rotvec(r)), atol=10 * TOL[dtype])
     assert np.allclose(qa.from_rotvec(r * 57.3, degrees=True), SQ(Rotation.from_rotvec(r * 57.3, degrees=True)))
+    big = r * 1e5  # long vectors: the polynomial sine/cosine's range reduction
+    assert np.allclose(qa.from_rotvec(big), SQ(Rotation.from_rotvec(big)), atol=1e-9)
 
 
 def test_from_rotvec_tiny_and_degenerate():
@@ -176,6 +178,7 @@ def test_from_rotvec_tiny_and_degenerate():
     assert qa.from_rotvec(r)[0] == 1.0
     assert np.array_equal(qa.from_rotvec([0, 0, 0]), [1, 0, 0, 0])
     assert np.isnan(qa.from_rotvec([np.nan, 0, 0])).all()
+    assert np.isnan(qa.from_rotvec([np.inf, 0, 0])).all()
 
 
 # ---------------------------------------------------------------- axis-angle
