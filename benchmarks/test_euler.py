@@ -18,34 +18,15 @@ scipy: as_euler ≥ 5×, from_euler ≥ 20×.
 
 import numpy as np
 import pytest
-from conftest import SIZES, arrays, run
+from conftest import LIBS, SIZES, arrays, need, npq, qn, run
 
 import quatarray as qa
 
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
 
-try:
-    import quaternion as npq
-except ImportError:  # pragma: no cover - optional competitor
-    npq = None
-try:
-    import quaternionic as qn
-except ImportError:  # pragma: no cover - optional competitor
-    qn = None
-
-LIBS = ["quatarray", "quatarray-f32", "scipy", "numpy-quaternion", "quaternionic"]
 SEQS = ["xyz", "ZYZ"]
 
 _ANGLES = {}
-
-
-def _need(lib, seq):
-    if lib == "numpy-quaternion" and npq is None:
-        pytest.skip("numpy-quaternion is not installed")
-    if lib == "quaternionic" and qn is None:
-        pytest.skip("quaternionic is not installed")
-    if lib in ("numpy-quaternion", "quaternionic") and seq != "ZYZ":
-        pytest.skip(f"{lib} has only the ZYZ convention")
 
 
 def _data(lib, n, seq):
@@ -53,8 +34,7 @@ def _data(lib, n, seq):
     dtype = np.float32 if lib.endswith("f32") else np.float64
     key = (n, seq)
     if key not in _ANGLES:
-        q = arrays(n)["q"]
-        _ANGLES[key] = qa.as_euler(q, seq, suppress_warnings=True)
+        _ANGLES[key] = qa.as_euler(arrays(n)["q"], seq, suppress_warnings=True)
     return arrays(n, dtype)["q"], _ANGLES[key].astype(dtype)
 
 
@@ -66,38 +46,41 @@ def _slow(benchmark, fn, n):
     return benchmark.pedantic(fn, rounds=3, iterations=1, warmup_rounds=1)
 
 
-@pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
-@pytest.mark.parametrize("seq", SEQS)
-@pytest.mark.parametrize("lib", LIBS)
-def test_as_euler(benchmark, lib, seq, n):
-    _need(lib, seq)
-    q, _ = _data(lib, n, seq)
-    benchmark.group = f"as_euler {seq} N={n}"
+def _as_euler(lib, seq, q, a):
     if lib.startswith("quatarray"):
-        run(benchmark, lambda: qa.as_euler(q, seq), n)
-    elif lib == "scipy":
-        r = Rotation.from_quat(q, scalar_first=True)
-        run(benchmark, lambda: r.as_euler(seq), n)
-    elif lib == "numpy-quaternion":
+        return lambda: qa.as_euler(q, seq)
+    if lib == "scipy":
+        r = Rotation.from_quat(q, scalar_first=True)  # built outside the timing
+        return lambda: r.as_euler(seq)
+    if lib == "numpy-quaternion":
         Q = npq.as_quat_array(q)
-        run(benchmark, lambda: npq.as_euler_angles(Q), n)
-    else:
-        Q = qn.array(q)
-        run(benchmark, lambda: Q.to_euler_angles, n)  # a property
+        return lambda: npq.as_euler_angles(Q)
+    Q = qn.array(q)
+    return lambda: Q.to_euler_angles  # a property
+
+
+def _from_euler(lib, seq, q, a):
+    if lib.startswith("quatarray"):
+        return lambda: qa.from_euler(seq, a)
+    if lib == "scipy":
+        return lambda: Rotation.from_euler(seq, a)
+    if lib == "numpy-quaternion":
+        return lambda: npq.from_euler_angles(a)
+    return lambda: qn.array.from_euler_angles(a)
 
 
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")
 @pytest.mark.parametrize("seq", SEQS)
 @pytest.mark.parametrize("lib", LIBS)
-def test_from_euler(benchmark, lib, seq, n):
-    _need(lib, seq)
-    _, a = _data(lib, n, seq)
-    benchmark.group = f"from_euler {seq} N={n}"
-    if lib.startswith("quatarray"):
-        run(benchmark, lambda: qa.from_euler(seq, a), n)
-    elif lib == "scipy":
-        _slow(benchmark, lambda: Rotation.from_euler(seq, a), n)
-    elif lib == "numpy-quaternion":
-        run(benchmark, lambda: npq.from_euler_angles(a), n)
+@pytest.mark.parametrize("op", [_as_euler, _from_euler], ids=["as_euler", "from_euler"])
+def test_euler(benchmark, op, lib, seq, n):
+    need(lib)
+    if lib in ("numpy-quaternion", "quaternionic") and seq != "ZYZ":
+        pytest.skip(f"{lib} has only the ZYZ convention")
+    name = op.__name__.strip("_")
+    benchmark.group = f"{name} {seq} N={n}"
+    fn = op(lib, seq, *_data(lib, n, seq))
+    if lib == "scipy" and name == "from_euler":
+        _slow(benchmark, fn, n)
     else:
-        run(benchmark, lambda: qn.array.from_euler_angles(a), n)
+        run(benchmark, fn, n)
