@@ -59,24 +59,34 @@ def _lib_error(name, exc):
 
 
 def _target(to, degrees):
-    """(fields, npy core shape, function of (n, 4) unit quaternions) for ``--to``."""
+    """(fields, npy core shape, function) for ``--to``; the function maps (n, 4) unit
+    quaternions to the target and takes an optional ``out=`` array of its result shape."""
     import quatarray as qa
 
     angles = to in ("rotvec", "axis-angle") or to.startswith("euler:")
     if degrees and not angles:
         raise UsageError(f"--degrees applies to rotvec, axis-angle and euler outputs, not {to}")
     if to == "quat":
-        return QUAT_FIELDS, (4,), lambda q: q
+        def quat(q, out=None):
+            if out is None:
+                return q
+            np.copyto(out, q)
+            return out
+
+        return QUAT_FIELDS, (4,), quat
     if to == "xyzw":
         return ["qx", "qy", "qz", "qw"], (4,), qa.as_xyzw
     if to == "matrix":
         return [f"r{i}{j}" for i in range(3) for j in range(3)], (3, 3), qa.as_matrix
     if to == "rotvec":
-        return ["rx", "ry", "rz"], (3,), lambda q: qa.as_rotvec(q, degrees=degrees)
+        return ["rx", "ry", "rz"], (3,), lambda q, out=None: qa.as_rotvec(q, degrees=degrees, out=out)
     if to == "axis-angle":
-        def axis_angle(q):
+        def axis_angle(q, out=None):
             axis, ang = qa.as_axis_angle(q, degrees=degrees)
-            return np.column_stack([axis, ang])
+            if out is None:
+                return np.column_stack([axis, ang])
+            out[:, :3], out[:, 3] = axis, ang
+            return out
 
         return ["ax", "ay", "az", "angle"], (4,), axis_angle
     if to.startswith("euler:"):
@@ -87,7 +97,15 @@ def _target(to, degrees):
                 f"--to {to}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
                 "no axis twice in a row, e.g. euler:ZXY"
             )
-        return [f"e{k + 1}_{a}" for k, a in enumerate(seq)], (3,), lambda q: qa.as_euler(q, seq, degrees=degrees)
+
+        def euler(q, out=None):
+            e = qa.as_euler(q, seq, degrees=degrees)
+            if out is None:
+                return e
+            out[...] = e
+            return out
+
+        return [f"e{k + 1}_{a}" for k, a in enumerate(seq)], (3,), euler
     raise UsageError(f"--to {to}: expected one of {TARGETS}")
 
 
@@ -109,7 +127,8 @@ def cmd_convert(args):
             if len(ch):
                 with warnings.catch_warnings(record=True) as caught:
                     warnings.simplefilter("always")
-                    out = fn(ch.data)
+                    # an .npy OUT hands out a map of its next rows: the kernel writes into the file
+                    out = fn(ch.data, out=w.buffer(len(ch), ch.data.dtype))
                 lock += sum(1 for c in caught if "gimbal" in str(c.message).lower())
                 w.write(out, ch.t, ch.pos)
             bar.update(n)
@@ -221,7 +240,7 @@ def cmd_resample(args):
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:
         buf, lo, last_q = None, 0, None
-        step = max(args.chunk, 8)
+        step = max(min(args.chunk, 1 << 16), 8)
         for ch in source():
             n = len(ch)
             ch = clean(ch)
@@ -237,16 +256,21 @@ def cmd_resample(args):
             if buf is None:
                 newt.t0 = float(ch.t[0])
             buf = ch if buf is None else concat([buf, ch])
-            hi = len(buf) - 3  # keep two keys of halo after the interval's end key
-            if hi - lo >= step:
-                emit(w, buf, lo, hi, closed=False)
-                buf = buf.slice(hi - 2, len(buf))  # two keys of halo before the next interval
+            # Intervals of `step` keys [lo, lo + step) are interpolated from their keys
+            # plus two of halo on each side (the Bézier and squad controls of a key use
+            # its neighbours), so each spline call sees at most step + 5 keys.
+            while len(buf) - 3 - lo >= step:
+                a = max(lo - 2, 0)
+                emit(w, buf.slice(a, lo + step + 3), lo - a, lo + step - a, closed=False)
+                lo += step
+            if lo > 2:
+                buf = buf.slice(lo - 2, len(buf))
                 lo = 2
         if buf is None:
             raise _no_rows(args.IN)
         if len(buf) < 2:
             raise DataError(f"{args.IN}: resampling needs at least 2 valid rows, got {len(buf)}")
-        emit(w, buf, lo, len(buf) - 1, closed=True)
+        emit(w, buf.slice(max(lo - 2, 0), len(buf)), min(lo, 2), len(buf) - 1 - max(lo - 2, 0), closed=True)
         newt.finish(float(buf.t[-1]))
     clean.report(sys.stderr)
     return 0
@@ -373,7 +397,7 @@ def cmd_rotate(args):
         for a, b, n in _paired(rq, rv, args.chunk):
             a, b = _clean_pair(cq, cv, a, b)
             if _pair_rows(a, b):
-                out = qa.rotate(a.data, b.data)
+                out = qa.rotate(a.data, b.data, out=w.buffer(_pair_rows(a, b), np.result_type(a.data, b.data)))
                 t = None
                 if tsrc is not None:
                     src = a if tsrc is rq else b
@@ -410,7 +434,7 @@ def cmd_compose(args):
                     ab = qa.VQS(va, a.data, np.ones(len(a))) @ qa.VQS(vb, b.data, np.ones(len(b)))
                     q, pos = np.broadcast_to(ab.q, (m, 4)), np.broadcast_to(ab.v, (m, 3))
                 else:
-                    q = qa.multiply(a.data, b.data)
+                    q = qa.multiply(a.data, b.data, out=w.buffer(m, np.result_type(a.data, b.data)))
                 t = None
                 if tsrc is not None:
                     src = a if tsrc is ra else b
@@ -662,6 +686,9 @@ def build_parser():
 
 def main(argv=None):
     """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage)."""
+    # The verbs alternate short parallel kernels with file I/O: idle OpenMP workers
+    # should sleep rather than spin and steal the core the I/O runs on.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

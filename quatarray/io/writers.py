@@ -62,6 +62,10 @@ def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
 
 
 class Writer:
+    def buffer(self, n, dtype):
+        """Where a kernel may put the next ``n`` rows (``out=``), or None to allocate."""
+        return None
+
     def __init__(self, path):
         self.path = os.fspath(path)
         folder, base = os.path.split(os.path.abspath(self.path))
@@ -110,13 +114,20 @@ class Writer:
 
 class NpyWriter(Writer):
     """``.npy`` written incrementally: a header with room for any row count, then the
-    chunks appended; the header is rewritten with the final count at the end."""
+    chunks appended; the header is rewritten with the final count at the end.
+
+    :meth:`buffer` hands out a memory map of the file's next rows, so a kernel
+    can write its results straight into the file (``out=``) with no copy; the
+    map is released when the next one is handed out, so resident memory stays
+    bounded.
+    """
 
     def __init__(self, path, core):
         super().__init__(path)
         self.core = core
         self.dtype = None
-        self.f = open(self.tmp, "wb")
+        self.f = open(self.tmp, "w+b")
+        self._buf = None
 
     def _header(self, rows):
         shape = (rows,) + self.core
@@ -129,25 +140,53 @@ class NpyWriter(Writer):
         pad = total - size
         return b"\x93NUMPY\x01\x00" + np.uint16(total - 10).tobytes() + text + b" " * pad + b"\n"
 
-    def write(self, data, t=None, pos=None):
-        data = np.ascontiguousarray(data)
+    def _start(self, dtype):
         if self.dtype is None:
-            self.dtype = data.dtype
+            self.dtype = np.dtype(dtype)
+            self.head = len(self._header(0))
+            self.rowbytes = int(np.prod(self.core)) * self.dtype.itemsize
             self.f.write(self._header(0))
-        elif data.dtype != self.dtype:
+
+    def _end(self):
+        return self.head + self.rows * self.rowbytes
+
+    def buffer(self, n, dtype):
+        """An ``(n,) + core`` array mapped onto the file's next ``n`` rows; pass it
+        (or a leading slice of it) to :meth:`write` once filled."""
+        self._start(dtype)
+        self._buf = None
+        if n == 0 or np.dtype(dtype) != self.dtype:
+            return None
+        self.f.truncate(self._end() + n * self.rowbytes)
+        self._buf = np.memmap(self.f, self.dtype, "r+", offset=self._end(), shape=(n,) + self.core)
+        return self._buf
+
+    def write(self, data, t=None, pos=None):
+        buf, self._buf = self._buf, None
+        if buf is not None and isinstance(data, np.ndarray) and data.shape[0] <= buf.shape[0] and (
+            data.__array_interface__["data"][0] == buf.__array_interface__["data"][0]
+        ):
+            self.rows += data.shape[0]  # already in place
+            return
+        del buf
+        data = np.ascontiguousarray(data)
+        self._start(data.dtype)
+        if data.dtype != self.dtype:
             data = data.astype(self.dtype)
+        self.f.seek(self._end())
         self.f.write(memoryview(data).cast("B"))
         self.rows += data.shape[0]
 
     def _finish(self):
-        if self.dtype is None:
-            self.dtype = np.dtype(np.float64)
-            self.f.write(self._header(0))
+        self._buf = None
+        self._start(np.float64)
+        self.f.truncate(self._end())
         self.f.seek(0)
         self.f.write(self._header(self.rows))
         self.f.close()
 
     def _release(self):
+        self._buf = None
         self.f.close()
 
 
