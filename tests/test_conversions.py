@@ -399,3 +399,20 @@ def test_bad_shapes_and_dtypes():
     # integers and lists become float64
     assert qa.as_matrix([1, 0, 0, 0]).dtype == np.float64
     assert qa.from_rotvec(np.zeros(3, np.int32)).dtype == np.float64
+
+
+def test_parallel_variants_report_the_first_bad_row(rng):
+    """The multi-threaded loops (used from QUATARRAY_PARALLEL_MIN_ROWS rows) reduce
+    the first bad row across threads and give the serial results."""
+    from quatarray import conversions as C
+
+    m = qa.as_matrix(qa.random(3000, rng))
+    m[[2500, 1700, 2900]] *= -1
+    out_p, out_s = np.empty((3000, 4)), np.empty((3000, 4))
+    assert C._from_matrix.parallel(m, out_p) == 1700 == C._from_matrix.serial(m, out_s)
+    assert np.array_equal(out_p, out_s, equal_nan=True)
+    axis = rng.standard_normal((3000, 3))
+    axis[[2999, 1234]] = 0
+    ang = rng.standard_normal(3000)
+    assert C._from_axis_angle.parallel(axis, ang, out_p) == 1234 == C._from_axis_angle.serial(axis, ang, out_s)
+    assert np.array_equal(out_p, out_s, equal_nan=True)
