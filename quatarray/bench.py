@@ -411,6 +411,10 @@ def table(n, ceil, rows, over=None):
     lines = []
     lines.append(f"quatarray bench: n = {n:,} (float64 unless stated), {os.cpu_count()} CPU(s), "
                  f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}")
+    load = _load()
+    if load is not None and load > 0.5 * (os.cpu_count() or 1):
+        lines.append(f"note: the machine is busy (load average {load:.1f} on {os.cpu_count()} CPUs); "
+                     "rates, and most of all multi-threaded ones, are lower than on an idle machine")
     lines.append(
         f"memory-stream ceiling (STREAM triad): {ceil['GBps']:.1f} GB/s "
         f"(numpy 1 thread {ceil['triad_GBps_numpy_1thread']:.1f}, numba threads {ceil['triad_GBps_numba_threads']:.1f})"
@@ -496,7 +500,8 @@ def run(n=None, json_path=None, budget=1.0, stream=None):
             "n": n,
             "dtype": "float64",
             "machine": {"cpus": os.cpu_count(), "arch": platform.machine(), "python": platform.python_version(),
-                        "numpy": np.__version__, "quatarray": quatarray.__version__},
+                        "numpy": np.__version__, "quatarray": quatarray.__version__,
+                        "load_average_1min": _load()},
             "ceiling": ceil,
             "results": rows,
             "overhead_us": over,
@@ -505,6 +510,13 @@ def run(n=None, json_path=None, budget=1.0, stream=None):
         with open(json_path, "w") as f:
             json.dump(doc, f, indent=1)
     return 0
+
+
+def _load():
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):  # not on every platform
+        return None
 
 
 def _version(lib):
