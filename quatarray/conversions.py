@@ -408,7 +408,9 @@ def _with_status(kernel, inputs, out_cores, out=None):
 
 
 def _row_name(index, lead):
-    if len(lead) <= 1:
+    if len(lead) == 0:
+        return "the single input"
+    if len(lead) == 1:
         return f"row {index}"
     return f"index {tuple(int(k) for k in np.unravel_index(index, lead))}"
 

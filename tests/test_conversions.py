@@ -120,6 +120,8 @@ def test_from_matrix_rejects_non_positive_determinant(rng):
         qa.from_matrix(m)
     with pytest.raises(ValueError, match=r"index \(1, 2\)"):
         qa.from_matrix(m.reshape(2, 5, 3, 3))
+    with pytest.raises(ValueError, match=r"the single input has determinant -1"):
+        qa.from_matrix(-np.eye(3))
     m[7] = np.diag([1.0, 1.0, -1.0])  # a reflection
     with pytest.raises(ValueError, match="determinant"):
         qa.from_matrix(m)
