@@ -31,8 +31,29 @@ def needs(module):
     return pytest.mark.skipif(not has(module), reason=f"quatarray.{module} is not there yet")
 
 
+def _warm_up():
+    """Compile (or load) every kernel the workers will run in this process first: numba's
+    on-disk cache then hands the machine code to the worker processes instead of each
+    compiling it again."""
+    q = qa.random(8, rng=0)
+    for name, (args, kwargs) in _cases(q).items():
+        if has(MODULE_OF[name]):
+            getattr(qa, name)(*args, **kwargs)
+    qa.cumprod(q)
+    qa.norm(q)
+    qa.dot(q, q)
+    qa.from_su2(qa.as_su2(q))
+    if has("interpolation"):
+        qa.unflip(q)
+        for method in ("bezier", "slerp", "nlerp", "squad"):
+            qa.spline(np.arange(8.0), q, [0.5, 6.5], method=method)
+        qa.angular_velocity(q, np.arange(8.0), frame="space")
+        qa.angular_velocity(q, np.arange(8.0), frame="body")
+
+
 @pytest.fixture(scope="module")
 def client():
+    _warm_up()
     cluster = distributed.LocalCluster(
         n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
     )
