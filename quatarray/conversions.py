@@ -8,6 +8,11 @@ Every conversion from a quaternion accepts any non-zero scale (the rotation
 of q/|q| is meant); a zero quaternion gives nan. Leading dimensions
 broadcast like numpy; float32 stays float32 and float64 stays float64.
 Euler angles live in :mod:`quatarray.euler`.
+
+The element functions of the rotation-vector and axis-angle kernels are
+inlined at numba-IR level (``_trig.inline``) and use the branch-free
+polynomial sine, cosine and arctangent of :mod:`quatarray._trig`, so their
+row loops compile to SIMD code (about 3× faster than with libm calls).
 """
 
 import math
@@ -16,7 +21,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
-from ._trig import half_arc, sincos
+from ._trig import half_arc, inline, sincos
 from ._validate import as_float, check_core, elementwise, is_weak, shape_error
 
 Q = (4,)
@@ -179,7 +184,7 @@ def shepperd(a):
     return E.qnormalize(q)
 
 
-@element
+@inline
 def canonical_flip(q):
     """True when scipy's canonical form (w > 0, ties to the first non-zero of
     x, y, z being positive) needs the sign of q flipped. (Bitwise operators,
@@ -189,7 +194,7 @@ def canonical_flip(q):
     return (w < zero) | ((w == zero) & ((x < zero) | ((x == zero) & ((y < zero) | ((y == zero) & (z < zero))))))
 
 
-@element
+@inline
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]."""
@@ -203,7 +208,7 @@ def qrotvec(q):
     return (f * x, f * y, f * z)
 
 
-@element
+@inline
 def qaxis_angle(q):
     """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan."""
     w, x, y, z = q
@@ -220,7 +225,7 @@ def qaxis_angle(q):
     return (x / k, y / k, z / k), ang
 
 
-@element
+@inline
 def half_sinc(h, s):
     """sin(h)/(2h) given s = sin h; a series for tiny h (exact to rounding)."""
     h2 = h * h
@@ -228,7 +233,7 @@ def half_sinc(h, s):
     return series if h < like(h, 1e-4) else like(h, 0.5) * s / h
 
 
-@element
+@inline
 def rotvec_quat(v):
     """exp of (0, v/2): (cos(θ/2), sin(θ/2)/θ · v), θ = |v|; exact for tiny θ."""
     h = like(v[0], 0.5) * E.vnorm(v)
