@@ -383,69 +383,63 @@ def _pair_rows(a, b):
     return max(len(a), len(b)) if min(len(a), len(b)) else 0
 
 
+def _run_paired(args, verb, ra, rb, fields, poses, compute):
+    """Drive a two-input verb: chunks in step, row pairs checked together, results
+    written with the first input's times (else the second's).
+
+    ``compute(a, b, m, buffer)`` returns ``(rows, positions or None)`` for ``m`` rows;
+    ``buffer(dtype)`` is where a kernel may write them (an ``.npy`` OUT's next rows).
+    """
+    check_output(args.OUT, [ra.name, rb.name], args.force)
+    ca, cb = Cleaner(ra, args.on_invalid), Cleaner(rb, args.on_invalid)
+    tsrc = ra if ra.has_time else (rb if rb.has_time else None)
+    total = ra.rows if ra.rows not in (None, 1) else rb.rows
+    with open_writer(args.OUT, fields, time=tsrc is not None, pos=poses) as w, \
+            _progress(args, total, verb) as bar:
+        for a, b, n in _paired(ra, rb, args.chunk):
+            a, b = _clean_pair(ca, cb, a, b)
+            m = _pair_rows(a, b)
+            if m:
+                out, pos = compute(a, b, m, lambda dtype: w.buffer(m, dtype))
+                t = None
+                if tsrc is not None:
+                    t = np.broadcast_to((a if tsrc is ra else b).t, (m,))
+                w.write(out, t, pos)
+            bar.update(n)
+        if w.rows == 0:
+            raise _no_rows(ra.name)
+    ca.report(sys.stderr)
+    cb.report(sys.stderr)
+    return 0
+
+
 def cmd_rotate(args):
     import quatarray as qa
 
-    rq = _open(args, args.QUATS)
-    rv = _open(args, args.VECTORS, kind="vector")
-    check_output(args.OUT, [args.QUATS, args.VECTORS], args.force)
-    cq, cv = Cleaner(rq, args.on_invalid), Cleaner(rv, args.on_invalid)
-    tsrc = rq if rq.has_time else (rv if rv.has_time else None)
-    total = rq.rows if rq.rows not in (None, 1) else rv.rows
-    with open_writer(args.OUT, ["x", "y", "z"], time=tsrc is not None) as w, \
-            _progress(args, total, "rotate") as bar:
-        for a, b, n in _paired(rq, rv, args.chunk):
-            a, b = _clean_pair(cq, cv, a, b)
-            if _pair_rows(a, b):
-                out = qa.rotate(a.data, b.data, out=w.buffer(_pair_rows(a, b), np.result_type(a.data, b.data)))
-                t = None
-                if tsrc is not None:
-                    src = a if tsrc is rq else b
-                    t = np.broadcast_to(src.t, (out.shape[0],))
-                w.write(out, t)
-            bar.update(n)
-        if w.rows == 0:
-            raise _no_rows(args.QUATS)
-    cq.report(sys.stderr)
-    cv.report(sys.stderr)
-    return 0
+    rq, rv = _open(args, args.QUATS), _open(args, args.VECTORS, kind="vector")
+
+    def compute(a, b, m, buffer):
+        return qa.rotate(a.data, b.data, out=buffer(np.result_type(a.data, b.data))), None
+
+    return _run_paired(args, "rotate", rq, rv, ["x", "y", "z"], False, compute)
 
 
 def cmd_compose(args):
     import quatarray as qa
 
     ra, rb = _open(args, args.A), _open(args, args.B)
-    check_output(args.OUT, [args.A, args.B], args.force)
-    ca, cb = Cleaner(ra, args.on_invalid), Cleaner(rb, args.on_invalid)
-    tsrc = ra if ra.has_time else (rb if rb.has_time else None)
     poses = ra.has_pos or rb.has_pos
-    total = ra.rows if ra.rows not in (None, 1) else rb.rows
-    with open_writer(args.OUT, QUAT_FIELDS, time=tsrc is not None, pos=poses) as w, \
-            _progress(args, total, "compose") as bar:
-        for a, b, n in _paired(ra, rb, args.chunk):
-            a, b = _clean_pair(ca, cb, a, b)
-            m = _pair_rows(a, b)
-            if m:
-                pos = None
-                if poses:
-                    # a pose is a VQS with s = 1: (v_a, q_a) ∘ (v_b, q_b) = (v_a + q_a v_b q_a⁻¹, q_a q_b)
-                    va = a.pos if a.pos is not None else np.zeros((len(a), 3))
-                    vb = b.pos if b.pos is not None else np.zeros((len(b), 3))
-                    ab = qa.VQS(va, a.data, np.ones(len(a))) @ qa.VQS(vb, b.data, np.ones(len(b)))
-                    q, pos = np.broadcast_to(ab.q, (m, 4)), np.broadcast_to(ab.v, (m, 3))
-                else:
-                    q = qa.multiply(a.data, b.data, out=w.buffer(m, np.result_type(a.data, b.data)))
-                t = None
-                if tsrc is not None:
-                    src = a if tsrc is ra else b
-                    t = np.broadcast_to(src.t, (m,))
-                w.write(q, t, pos)
-            bar.update(n)
-        if w.rows == 0:
-            raise _no_rows(args.A)
-    ca.report(sys.stderr)
-    cb.report(sys.stderr)
-    return 0
+
+    def compute(a, b, m, buffer):
+        if not poses:
+            return qa.multiply(a.data, b.data, out=buffer(np.result_type(a.data, b.data))), None
+        # a pose is a VQS with s = 1: (v_a, q_a) ∘ (v_b, q_b) = (v_a + q_a v_b q_a⁻¹, q_a q_b)
+        va = a.pos if a.pos is not None else np.zeros((len(a), 3))
+        vb = b.pos if b.pos is not None else np.zeros((len(b), 3))
+        ab = qa.VQS(va, a.data, np.ones(len(a))) @ qa.VQS(vb, b.data, np.ones(len(b)))
+        return np.broadcast_to(ab.q, (m, 4)), np.broadcast_to(ab.v, (m, 3))
+
+    return _run_paired(args, "compose", ra, rb, QUAT_FIELDS, poses, compute)
 
 
 # --------------------------------------------------------------------------
@@ -568,10 +562,11 @@ def cmd_bench(args):
 
 def cmd_plot(args):
     mod = _optional("plot", "plot")
-    check_output(args.OUT, [args.IN], args.force)
+    check_output(args.OUT, [args.IN] + ([args.after] if args.after else []), args.force)
+    extra = {k: v for k, v in (("after", args.after), ("seq", args.seq)) if v is not None}
     return int(
         mod.plot_file(args.IN, args.OUT, fmt=args.format, layout=args.layout, joint=args.joint,
-                      chunk=args.chunk, on_invalid=args.on_invalid) or 0
+                      chunk=args.chunk, on_invalid=args.on_invalid, **extra) or 0
     )
 
 
@@ -680,12 +675,34 @@ def build_parser():
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")
     s.add_argument("OUT", metavar="OUT.png")
+    s.add_argument("--after", metavar="FILE", help="a second stream (e.g. resampled) drawn over IN")
+    s.add_argument("--seq", metavar="SEQ", help="Euler sequence of the angle panel (default: the BVH's own, else ZYX)")
     s.set_defaults(func=cmd_plot)
     return p
 
 
 def main(argv=None):
-    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage)."""
+    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``quatarray`` (default ``sys.argv[1:]``).
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> from quatarray.cli import main
+    >>> folder = tempfile.mkdtemp()
+    >>> src, out = os.path.join(folder, "q.npy"), os.path.join(folder, "m.npy")
+    >>> np.save(src, np.array([[0.0, 0, 0, 1]]))  # 180° about z
+    >>> main(["convert", src, out, "--to", "matrix"])
+    0
+    >>> np.load(out)[0].round(12)
+    array([[-1.,  0.,  0.],
+           [ 0., -1.,  0.],
+           [ 0.,  0.,  1.]])
+    """
     # The verbs alternate short parallel kernels with file I/O: idle OpenMP workers
     # should sleep rather than spin and steal the core the I/O runs on.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

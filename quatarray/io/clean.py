@@ -25,6 +25,21 @@ class Cleaner:
         Times must be strictly increasing (``resample``).
     normalize : bool
         Normalise quaternions (vectors are never normalised).
+
+    Examples
+    --------
+    >>> import os, sys, tempfile, numpy as np
+    >>> from quatarray import io
+    >>> path = os.path.join(tempfile.mkdtemp(), "q.npy")
+    >>> np.save(path, np.array([[2.0, 0, 0, 0], [0, 0, 0, 0], [0, 1, 0, 0]]))
+    >>> reader = io.open_stream(path, name="q.npy")
+    >>> clean = io.Cleaner(reader, on_invalid="drop")
+    >>> [clean(chunk).data for chunk in reader]
+    [array([[1., 0., 0., 0.],
+           [0., 1., 0., 0.]])]
+    >>> clean.report(sys.stdout)
+    q.npy: dropped 1 invalid row
+    q.npy: normalised 1 non-unit quaternion (largest | |q| - 1 | = 1)
     """
 
     def __init__(self, reader, on_invalid="error", ordered=False, normalize=True):

@@ -33,7 +33,7 @@ DEFAULT_CHUNK = 1 << 18
 
 def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DEFAULT_CHUNK,
                 on_invalid="error", name=None):
-    """Open a stream file for chunked reading.
+    r"""Open a stream file for chunked reading.
 
     Parameters
     ----------
@@ -57,6 +57,20 @@ def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DE
     -------
     reader
         An iterable of chunks with the attributes listed in the module docstring.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> from quatarray import io
+    >>> path = os.path.join(tempfile.mkdtemp(), "walk.csv")
+    >>> _ = open(path, "w").write("t,qx,qy,qz,qw\n0,0,0,0,1\n0.5,0,0,1,0\n")
+    >>> reader = io.open_stream(path)
+    >>> reader.format, reader.has_time, reader.columns
+    ('csv', True, ['t', 'qw', 'qx', 'qy', 'qz'])
+    >>> chunk = next(iter(reader))
+    >>> chunk.t, chunk.data  # quaternions as (w, x, y, z)
+    (array([0. , 0.5]), array([[1., 0., 0., 0.],
+           [0., 0., 0., 1.]]))
     """
     path = os.fspath(path)
     name = name or path
@@ -703,10 +717,19 @@ def _parse_num(s, typ, name, lineno, what):
 
 
 def read_times(path, fmt="auto", name=None):
-    """A 1-D float64 array of times from a file.
+    r"""A 1-D float64 array of times from a file.
 
     ``.npy``: a 1-D array (or (N, 1)). Text: one number a line, or any stream
     file with a time column (csv/tum/euroc/parquet/bvh), whose times are used.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from quatarray import io
+    >>> path = os.path.join(tempfile.mkdtemp(), "times.txt")
+    >>> _ = open(path, "w").write("0.0\n0.25\n0.5\n")
+    >>> io.read_times(path)
+    array([0.  , 0.25, 0.5 ])
     """
     path = os.fspath(path)
     name = name or path

@@ -16,7 +16,18 @@ from .errors import UsageError
 
 
 def check_output(out, inputs=(), force=False):
-    """Refuse OUT when it is one of the inputs, or exists without ``force``."""
+    """Refuse OUT when it is one of the inputs, or exists without ``force``.
+
+    Raises :class:`~quatarray.io.UsageError` (exit status 2 on the command line).
+
+    Examples
+    --------
+    >>> from quatarray import io
+    >>> io.check_output("walk.npy", ["walk.npy"])
+    Traceback (most recent call last):
+    ...
+    quatarray.io.errors.UsageError: walk.npy: the output is the input file; write to another file
+    """
     out = os.fspath(out)
     for src in inputs:
         src = os.fspath(src)
@@ -44,6 +55,17 @@ def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
         Trailing shape of the array in an ``.npy`` output (default ``(len(fields),)``).
     time, pos : bool
         Whether chunks carry a time column and x, y, z columns (csv, parquet, tum).
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> from quatarray import io
+    >>> out = os.path.join(tempfile.mkdtemp(), "o.csv")
+    >>> with io.open_writer(out, ["qw", "qx", "qy", "qz"], time=True) as w:
+    ...     w.write(np.array([[1.0, 0, 0, 0]]), t=np.array([0.5]))
+    >>> print(open(out).read(), end="")
+    t,qw,qx,qy,qz
+    0.5,1,0,0,0
     """
     fmt = fmt or F.output_format(path)
     core = tuple(core) if core is not None else (len(fields),)
