@@ -26,29 +26,41 @@ from ._validate import as_float, check_core, elementwise, shape_error
 
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
+# rows per block of a row loop: prange runs over blocks and the plain inner
+# loop is what LLVM vectorises (a prange loop body itself is not vectorised)
+ROWS = 1024
+NSEG = 25  # floats per row of a spline's segment table
 
 # --------------------------------------------------------------------------
 # element functions (inlined so the row loops vectorise)
 
 
 @inline
-def arc(p, q):
-    """(θ, sin θ, antipodal) of the great arc from unit p to unit q.
+def arc(p, q, shortest):
+    """(θ, sin θ, antipodal, f) of the great arc from unit p to unit (1 − f)·q.
 
-    θ = 2 atan2(|p − q|, |p + q|) ∈ [0, π]; sin θ = 2ab/(a² + b²);
-    antipodal is 1 exactly when p = −q (b = 0), else 0.
+    f = 2 when p·q < 0 and `shortest` is 1.0, else 0 (`shortest` is a float
+    flag: a runtime boolean in the loop keeps LLVM from vectorising).
+    The flip costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|)
+    ∈ [0, π]; sin θ = 2ab/(a² + b²); antipodal is 1 exactly when p = −sq.
     """
     dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
-    m2 = dw * dw + dx * dx + dy * dy + dz * dz
-    p2 = sw * sw + sx * sx + sy * sy + sz * sz
+    d2 = dw * dw + dx * dx + dy * dy + dz * dz
+    s2 = sw * sw + sx * sx + sy * sy + sz * sz
+    flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
+    m2 = s2 if flip else d2
+    p2 = d2 if flip else s2
+    # 2 when flipped, else 0, converted from the boolean (a select or copysign
+    # feeding the weights stops LLVM's vectoriser)
+    sgn = like(d2, 2.0) * flip
     a = np.sqrt(m2)
     b = np.sqrt(p2)
     two = like(a, 2.0)
     th = two * half_arc(a, b)
     st = two * a * b / (m2 + p2)
     anti = like(a, 1.0) if b == like(a, 0.0) else like(a, 0.0)
-    return th, st, anti
+    return th, st, anti, sgn
 
 
 @inline
@@ -92,19 +104,11 @@ def combine(p, q, w):
 
 
 @inline
-def hemisphere(p, q, shortest):
-    """q, or −q when `shortest` and p·q < 0 (same rotation, shorter arc)."""
-    d = p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
-    neg = shortest & (d < like(d, 0.0))
-    s = like(d, -1.0) if neg else like(d, 1.0)
-    return (s * q[0], s * q[1], s * q[2], s * q[3])
-
-
-@inline
-def slerp4(p, q, t):
-    """Great-arc interpolation of unit p and q at t (no hemisphere flip)."""
-    th, st, anti = arc(p, q)
-    return combine(p, q, arc_weights(th, st, anti, t))
+def slerp4(p, q, t, shortest=0.0):
+    """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's hemisphere)."""
+    th, st, anti, sgn = arc(p, q, shortest)
+    w0, w1, w2 = arc_weights(th, st, anti, t)
+    return combine(p, q, (w0, w1 - sgn * w1, w2))  # exactly ±w1
 
 
 @inline
@@ -134,6 +138,17 @@ def ld4(a, i):
 
 
 @inline
+def ld4flat(a, i):
+    # loads through a flat index: LLVM turns the stride-4 group into shuffles,
+    # where a 2-D index (runtime strides) becomes slow gathers
+    j = 4 * i
+    z = like(a, 0.0)
+    # "+ 0" keeps LLVM from folding a select of two loaded values into a load
+    # through a selected pointer, which the vectoriser cannot bound
+    return (a[j] + z, a[j + 1] + z, a[j + 2] + z, a[j + 3] + z)
+
+
+@inline
 def st4flat(o, i, q):
     # a store through a flat index: LLVM vectorises it, a 2-D store it does not
     j = 4 * i
@@ -147,31 +162,46 @@ def st4flat(o, i, q):
 # batched loops. Quaternion outputs are flat (4n,) views (see `_flat`).
 
 
-@rowloop
+@rowloop(rows=2)
 def _slerp(p, q, t, shortest, out):
-    for i in prange(p.shape[0]):
-        pi = ld4(p, i)
-        st4flat(out, i, slerp4(pi, hemisphere(pi, ld4(q, i), shortest), t[i]))
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            st4flat(out, i, slerp4(ld4flat(p, i), ld4flat(q, i), t[i], shortest))
 
 
-@rowloop
+@rowloop(rows=2)
 def _nlerp(p, q, t, shortest, out):
-    for i in prange(p.shape[0]):
-        pi = ld4(p, i)
-        qi = hemisphere(pi, ld4(q, i), shortest)
-        s = like(t, 1.0) - t[i]
-        st4flat(out, i, E.qnormalize((s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
-                                      s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3])))
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            pi = ld4flat(p, i)
+            qi = ld4flat(q, i)
+            d = pi[0] * qi[0] + pi[1] * qi[1] + pi[2] * qi[2] + pi[3] * qi[3]
+            s = like(t, 1.0) - t[i]
+            # −t when q is flipped into p's hemisphere; 0 or 2 from the boolean (no select)
+            ts = t[i] - like(t, 2.0) * (d * shortest < like(t, 0.0)) * t[i]
+            r = (s * pi[0] + ts * qi[0], s * pi[1] + ts * qi[1], s * pi[2] + ts * qi[2], s * pi[3] + ts * qi[3])
+            n = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+            st4flat(out, i, (r[0] / n, r[1] / n, r[2] / n, r[3] / n))
 
 
-@rowloop
+@rowloop(rows=2)
 def _lerp(p, q, t, out):
-    for i in prange(p.shape[0]):
-        pi = ld4(p, i)
-        qi = ld4(q, i)
-        s = like(t, 1.0) - t[i]
-        st4flat(out, i, (s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
-                         s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3]))
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            pi = ld4flat(p, i)
+            qi = ld4flat(q, i)
+            s = like(t, 1.0) - t[i]
+            st4flat(out, i, (s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
+                             s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3]))
 
 
 @inline
@@ -191,26 +221,42 @@ def bisect4(p, q):
 
 @rowloop
 def _double(p, q, out):
-    for i in prange(p.shape[0]):
-        st4flat(out, i, double4(ld4(p, i), ld4(q, i)))
+    n = p.shape[0] // 4
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            st4flat(out, i, double4(ld4flat(p, i), ld4flat(q, i)))
 
 
 @rowloop
 def _bisect(p, q, out):
-    for i in prange(p.shape[0]):
-        st4flat(out, i, bisect4(ld4(p, i), ld4(q, i)))
+    n = p.shape[0] // 4
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            st4flat(out, i, bisect4(ld4flat(p, i), ld4flat(q, i)))
 
 
-@rowloop
+@rowloop(rows=4)
 def _bezier(q0, a, b, q1, t, out):
-    for i in prange(q0.shape[0]):
-        st4flat(out, i, bezier4(ld4(q0, i), ld4(a, i), ld4(b, i), ld4(q1, i), t[i]))
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            st4flat(out, i, bezier4(ld4flat(q0, i), ld4flat(a, i), ld4flat(b, i), ld4flat(q1, i), t[i]))
 
 
-@rowloop
+@rowloop(rows=4)
 def _squad(q0, s0, s1, q1, t, out):
-    for i in prange(q0.shape[0]):
-        st4flat(out, i, squad4(ld4(q0, i), ld4(s0, i), ld4(s1, i), ld4(q1, i), t[i]))
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            st4flat(out, i, squad4(ld4flat(q0, i), ld4flat(s0, i), ld4flat(s1, i), ld4flat(q1, i), t[i]))
 
 
 @kernel
@@ -263,7 +309,7 @@ def _unflip(q, out):
 def _arcs(p, q, seg, col):
     """seg[n, col:col+3] = arc(p[n], q[n])."""
     for n in range(p.shape[0]):
-        th, st, anti = arc(ld4(p, n), ld4(q, n))
+        th, st, anti, sgn = arc(ld4(p, n), ld4(q, n), like(seg, 0.0))
         seg[n, col] = th
         seg[n, col + 1] = st
         seg[n, col + 2] = anti
@@ -305,7 +351,7 @@ def _locate(times, new_t, idx, u):
 
 @inline
 def seg_arc(seg, n, c):
-    return seg[n, c], seg[n, c + 1], seg[n, c + 2]
+    return seg[n + c], seg[n + c + 1], seg[n + c + 2]
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
@@ -314,59 +360,75 @@ def seg_arc(seg, n, c):
 
 @rowloop(rows=1)
 def _eval_slerp(seg, idx, u, out):
-    for j in prange(idx.shape[0]):
-        n = idx[j]
-        p = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
-        q = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
-        th, st, anti = seg_arc(seg, n, 16)
-        st4flat(out, j, combine(p, q, arc_weights(th, st, anti, u[j])))
+    m = idx.shape[0]
+    for blk in prange((m + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)
+        for k in range(min(m - lo, ROWS)):
+            j = lo + k
+            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
+            p = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
+            q = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
+            th, st, anti = seg_arc(seg, n, 16)
+            st4flat(out, j, combine(p, q, arc_weights(th, st, anti, u[j])))
 
 
 @rowloop(rows=1)
 def _eval_nlerp(seg, idx, u, out):
-    for j in prange(idx.shape[0]):
-        n = idx[j]
-        t = u[j]
-        s = like(t, 1.0) - t
-        r = (s * seg[n, 0] + t * seg[n, 12], s * seg[n, 1] + t * seg[n, 13],
-             s * seg[n, 2] + t * seg[n, 14], s * seg[n, 3] + t * seg[n, 15])
-        nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
-        st4flat(out, j, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
+    m = idx.shape[0]
+    for blk in prange((m + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)
+        for k in range(min(m - lo, ROWS)):
+            j = lo + k
+            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
+            t = u[j]
+            s = like(t, 1.0) - t
+            r = (s * seg[n + 0] + t * seg[n + 12], s * seg[n + 1] + t * seg[n + 13],
+                 s * seg[n + 2] + t * seg[n + 14], s * seg[n + 3] + t * seg[n + 15])
+            nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+            st4flat(out, j, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
 
 
 @rowloop(rows=1)
 def _eval_bezier(seg, idx, u, out):
-    for j in prange(idx.shape[0]):
-        n = idx[j]
-        t = u[j]
-        q0 = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
-        a = (seg[n, 4], seg[n, 5], seg[n, 6], seg[n, 7])
-        b = (seg[n, 8], seg[n, 9], seg[n, 10], seg[n, 11])
-        q1 = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
-        # level 1 on the three fixed control arcs: only the weights per sample
-        th, st, anti = seg_arc(seg, n, 16)
-        p01 = combine(q0, a, arc_weights(th, st, anti, t))
-        th, st, anti = seg_arc(seg, n, 19)
-        p12 = combine(a, b, arc_weights(th, st, anti, t))
-        th, st, anti = seg_arc(seg, n, 22)
-        p23 = combine(b, q1, arc_weights(th, st, anti, t))
-        st4flat(out, j, casteljau_tail(p01, p12, p23, t))
+    m = idx.shape[0]
+    for blk in prange((m + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)
+        for k in range(min(m - lo, ROWS)):
+            j = lo + k
+            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
+            t = u[j]
+            q0 = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
+            a = (seg[n + 4], seg[n + 5], seg[n + 6], seg[n + 7])
+            b = (seg[n + 8], seg[n + 9], seg[n + 10], seg[n + 11])
+            q1 = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
+            # level 1 on the three fixed control arcs: only the weights per sample
+            th, st, anti = seg_arc(seg, n, 16)
+            p01 = combine(q0, a, arc_weights(th, st, anti, t))
+            th, st, anti = seg_arc(seg, n, 19)
+            p12 = combine(a, b, arc_weights(th, st, anti, t))
+            th, st, anti = seg_arc(seg, n, 22)
+            p23 = combine(b, q1, arc_weights(th, st, anti, t))
+            st4flat(out, j, casteljau_tail(p01, p12, p23, t))
 
 
 @rowloop(rows=1)
 def _eval_squad(seg, idx, u, out):
-    for j in prange(idx.shape[0]):
-        n = idx[j]
-        t = u[j]
-        q0 = (seg[n, 0], seg[n, 1], seg[n, 2], seg[n, 3])
-        s0 = (seg[n, 4], seg[n, 5], seg[n, 6], seg[n, 7])
-        s1 = (seg[n, 8], seg[n, 9], seg[n, 10], seg[n, 11])
-        q1 = (seg[n, 12], seg[n, 13], seg[n, 14], seg[n, 15])
-        th, st, anti = seg_arc(seg, n, 16)
-        pq = combine(q0, q1, arc_weights(th, st, anti, t))
-        th, st, anti = seg_arc(seg, n, 19)
-        ps = combine(s0, s1, arc_weights(th, st, anti, t))
-        st4flat(out, j, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
+    m = idx.shape[0]
+    for blk in prange((m + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)
+        for k in range(min(m - lo, ROWS)):
+            j = lo + k
+            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
+            t = u[j]
+            q0 = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
+            s0 = (seg[n + 4], seg[n + 5], seg[n + 6], seg[n + 7])
+            s1 = (seg[n + 8], seg[n + 9], seg[n + 10], seg[n + 11])
+            q1 = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
+            th, st, anti = seg_arc(seg, n, 16)
+            pq = combine(q0, q1, arc_weights(th, st, anti, t))
+            th, st, anti = seg_arc(seg, n, 19)
+            ps = combine(s0, s1, arc_weights(th, st, anti, t))
+            st4flat(out, j, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
 
 
 # ---- angular velocity ----
@@ -393,13 +455,18 @@ def _interval_rates(q, h, body, w):
 
 
 def _flat(kern, *extra):
-    """Adapt a kernel writing a flat (4n,) output to `elementwise`'s (n, 4) target.
+    """Adapt a kernel on flat arrays to `elementwise`'s ``(n,) + core`` views.
 
-    ``extra`` are trailing scalar arguments passed before the output.
+    Every input and the output are passed as 1-D C-contiguous arrays
+    (quaternions as (4n,)): views where the layout allows, else contiguous
+    copies (broadcast or strided inputs). The kernels then index with
+    constant strides, which LLVM vectorises. ``extra`` are trailing scalar
+    arguments passed before the output.
     """
 
     def run(*args):
         *ins, out = args
+        ins = [np.ascontiguousarray(a).reshape(-1) for a in ins]
         if out.flags.c_contiguous:
             kern(*ins, *extra, out.reshape(-1))
         else:
@@ -453,7 +520,7 @@ def nlerp(p, q, t, shortest=True, out=None):
     >>> np.round(qa.nlerp([1, 0, 0, 0], [0, 0, 0, -1], 0.5), 6)  # -q is nearer
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    return elementwise(_flat(_nlerp, bool(shortest)), _pqt(p, q, t), [Q], out)
+    return elementwise(_flat(_nlerp, 1.0 if shortest else 0.0), _pqt(p, q, t), [Q], out)
 
 
 def slerp(p, q, t, shortest=True, out=None):
@@ -497,7 +564,7 @@ def slerp(p, q, t, shortest=True, out=None):
     >>> qa.slerp(p, q, [0.0, 0.5, 1.0]).shape
     (3, 4)
     """
-    return elementwise(_flat(_slerp, bool(shortest)), _pqt(p, q, t), [Q], out)
+    return elementwise(_flat(_slerp, 1.0 if shortest else 0.0), _pqt(p, q, t), [Q], out)
 
 
 def double(p, q, out=None):
@@ -792,7 +859,7 @@ def spline(times, keys, new_times, method="bezier"):
 
     q = unflip(normalize(q))
     dtype = q.dtype
-    seg = np.zeros((k - 1, 25), dtype)
+    seg = np.zeros((k - 1, NSEG), dtype)
     seg[:, 0:4] = q[:-1]
     seg[:, 12:16] = q[1:]
     if method == "bezier":
@@ -816,7 +883,7 @@ def spline(times, keys, new_times, method="bezier"):
     out = np.empty((m, 4), dtype)
     if m:
         _locate(t, np.ascontiguousarray(flat_nt), idx, u)
-        _SPLINE[method](seg, idx, u, out.reshape(-1))
+        _SPLINE[method](seg.reshape(-1), idx, u, out.reshape(-1))
     return out.reshape(nt.shape + Q)
 
 
