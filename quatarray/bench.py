@@ -252,7 +252,6 @@ def cases(n, seed=0):
     new_times = np.linspace(times[0], times[-1], 4 * (k - 1) + 1)
     m_out = new_times.size
     rkeys = Rotation.from_quat(keys, scalar_first=True)
-    spline = _qa("spline")
     for method, other in (("bezier", "RotationSpline"), ("slerp", "Slerp"), ("squad", None)):
         c = case(f"spline {method} ({k} keys -> {m_out})", items=m_out,
                  note=f"scipy: {other}" if other else "npq/qn: squad", qa_name="spline",
@@ -268,7 +267,6 @@ def cases(n, seed=0):
             if qn is not None:
                 QK = qn.array(keys)
                 c.add("quaternionic", lambda: qn.squad(qn.unflip_rotors(QK), times, new_times))
-    del spline
 
     # --- conversions
     c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p))

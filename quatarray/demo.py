@@ -107,7 +107,6 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
     root = joints[0]
     n = len(t)
     fps = 1.0 / np.median(np.diff(t))
-    raw = streams[root]
     flips_raw = {j: int(np.sum(qa.dot(q[1:], q[:-1]) < 0)) for j, q in streams.items()}
     norm_dev = max(float(np.max(np.abs(qa.norm(q) - 1))) for q in streams.values())
 
