@@ -722,6 +722,9 @@ def main(argv=None):
     except DataError as exc:
         print(str(exc), file=sys.stderr)
         return 1
+    except BrokenPipeError:  # `quatarray info x | head`: the reader went away
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)

@@ -454,3 +454,22 @@ def test_real_bvh_root_matches_scipy(data_dir):
     ref = Rotation.from_euler("ZXY", motion[:, 3:6], degrees=True).as_quat(scalar_first=True)
     assert same_rotation(got.data, ref, 1e-12)
     np.testing.assert_allclose(got.t, np.arange(455) * 0.033333)
+
+
+def test_euroc_bad_timestamp_error_and_drop(tmp_path):
+    head = "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []\n"
+    p = write(tmp_path / "gt.csv", head + "1000000000,1,2,3,1,0,0,0\n10x0,1,2,3,1,0,0,0\n3000000000,1,2,3,0,1,0,0\n")
+    with pytest.raises(DataError, match=r"gt\.csv:3: not an integer: '10x0' in column timestamp"):
+        read_all(io.open_stream(p, name="gt.csv"))
+    got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
+    np.testing.assert_array_equal(got.t, [1.0, 3.0])
+    assert clean.dropped == 1
+
+
+def test_kitti_not_a_rotation(tmp_path):
+    rows = ["1 0 0 0 0 1 0 0 0 0 1 0", "1 0 0 0 0 1 0 0 0 0 -1 0"]
+    p = write(tmp_path / "k.txt", "\n".join(rows) + "\n")
+    with pytest.raises(DataError, match=r"k\.txt:2: not a rotation matrix \(determinant -1\)"):
+        read_all(io.open_stream(p, name="k.txt"))
+    got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
+    assert len(got) == 1 and clean.dropped == 1
