@@ -1,0 +1,414 @@
+"""quatarray.interpolation against scipy, mpmath and an independent Bézier implementation."""
+
+import mpmath
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation, Slerp
+
+import quatarray as qa
+from quatarray import interpolation as I
+
+R = lambda q: Rotation.from_quat(np.asarray(q, float), scalar_first=True)  # noqa: E731
+
+
+def same_rot(a, b, atol):
+    return np.allclose(qa.distance(np.asarray(a, float), np.asarray(b, float)), 0, atol=atol)
+
+
+# ---------------------------------------------------------------------------
+# a deliberately simple, independent implementation of the contract's formulas
+
+
+def ref_slerp(p, q, t):
+    """Textbook slerp with arccos-free angle via numpy, one pair at a time."""
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    th = 2 * np.arctan2(np.linalg.norm(p - q), np.linalg.norm(p + q))
+    if th == 0:
+        return (1 - t) * p + t * q
+    return (np.sin((1 - t) * th) * p + np.sin(t * th) * q) / np.sin(th)
+
+
+def ref_double(p, q):
+    return 2 * np.dot(p, q) * q - p
+
+
+def ref_bisect(p, q):
+    return (p + q) / np.linalg.norm(p + q)
+
+
+def ref_controls(keys):
+    k = len(keys)
+    ext = [ref_double(keys[1], keys[0])] + list(keys) + [ref_double(keys[-2], keys[-1])]
+    a, b = [], []
+    for n in range(k):
+        qm, qn, qp = ext[n], ext[n + 1], ext[n + 2]
+        ah = ref_bisect(ref_double(qm, qn), qp)
+        an = ref_slerp(qn, ah, 1 / 3)
+        a.append(an)
+        b.append(ref_double(an, qn))
+    return np.array(a), np.array(b)
+
+
+def ref_bezier(q0, a, b, q1, t):
+    p01, p12, p23 = ref_slerp(q0, a, t), ref_slerp(a, b, t), ref_slerp(b, q1, t)
+    return ref_slerp(ref_slerp(p01, p12, t), ref_slerp(p12, p23, t), t)
+
+
+def smooth_keys(rng, k, step=0.3):
+    q = qa.from_rotvec(np.cumsum(rng.standard_normal((k, 3)) * step, axis=0))
+    return qa.unflip(q)
+
+
+# ---------------------------------------------------------------------------
+# lerp, nlerp, double, bisect
+
+
+def test_lerp_nlerp(rng):
+    p, q = qa.random(50, rng), qa.random(50, rng)
+    t = rng.uniform(-0.5, 1.5, 50)
+    assert np.allclose(qa.lerp(p, q, t), (1 - t)[:, None] * p + t[:, None] * q, atol=1e-15)
+    flip = np.where(np.sum(p * q, -1) < 0, -1.0, 1.0)[:, None]
+    want = (1 - t)[:, None] * p + t[:, None] * q * flip
+    assert np.allclose(qa.nlerp(p, q, t), want / np.linalg.norm(want, axis=-1, keepdims=True), atol=1e-15)
+    raw = (1 - t)[:, None] * p + t[:, None] * q
+    assert np.allclose(qa.nlerp(p, q, t, shortest=False), raw / np.linalg.norm(raw, axis=-1, keepdims=True))
+
+
+def test_double_bisect(rng):
+    p, q = qa.random(20, rng), qa.random(20, rng)
+    assert np.allclose(qa.double(p, q), [ref_double(a, b) for a, b in zip(p, q)], atol=1e-15)
+    assert np.allclose(qa.bisect(p, q), [ref_bisect(a, b) for a, b in zip(p, q)], atol=1e-15)
+    assert np.allclose(qa.double(qa.double(p, q), q), p, atol=1e-14)  # a reflection
+
+
+# ---------------------------------------------------------------------------
+# slerp
+
+
+@pytest.mark.parametrize("shortest", [True, False])
+def test_slerp_matches_scipy(rng, shortest):
+    p, q = qa.random(300, rng), qa.random(300, rng)
+    t = rng.random(300)
+    got = qa.slerp(p, q, t, shortest=shortest)
+    want = np.array([Slerp([0, 1], R([a, b]))(s).as_quat(scalar_first=True) for a, b, s in zip(p, q, t)])
+    assert same_rot(got, want, 1e-14) == shortest  # scipy always takes the short way
+    assert np.allclose(np.linalg.norm(got, axis=-1), 1, atol=1e-15)
+    if not shortest:  # the long arc of unit p → q, as written
+        assert np.allclose(got, [ref_slerp(a, b, s) for a, b, s in zip(p, q, t)], atol=1e-14)
+
+
+def test_slerp_exact_ends_and_extrapolation(rng):
+    p, q = qa.random(100, rng), qa.random(100, rng)
+    q = np.where((np.sum(p * q, -1) < 0)[:, None], -q, q)  # same hemisphere: t=1 gives q itself
+    assert np.array_equal(qa.slerp(p, q, 0.0), p)
+    assert np.array_equal(qa.slerp(p, q, 1.0), q)
+    assert np.array_equal(qa.slerp(p, -q, 1.0), q)  # shortest flips −q back to q
+    assert np.array_equal(qa.slerp(p, -q, 1.0, shortest=False), -q)
+    # extrapolation stays on the arc: slerp(p, q, 2) = q (p⁻¹ q)
+    two = qa.slerp(p, q, 2.0)
+    assert np.allclose(two, qa.multiply(q, qa.multiply(qa.conjugate(p), q)), atol=1e-14)
+    assert np.allclose(qa.slerp(p, q, -1.0), qa.multiply(p, qa.multiply(qa.conjugate(q), p)), atol=1e-14)
+
+
+def test_slerp_broadcasting_out_and_readonly(rng):
+    p, q = qa.random(2, rng)
+    t = np.linspace(0, 1, 7)
+    r = qa.slerp(p, q, t)
+    assert r.shape == (7, 4)
+    assert np.allclose(r, [qa.slerp(p, q, s) for s in t], atol=0)
+    ps, qs = qa.random((3, 1), rng), qa.random(5, rng)
+    assert qa.slerp(ps, qs, 0.3).shape == (3, 5, 4)
+    a = qa.random(10, rng)
+    a.flags.writeable = False
+    b = qa.random(10, rng)[::-1]  # non-contiguous
+    want = qa.slerp(a, b, 0.4)
+    out = b.copy()
+    assert qa.slerp(a, out, 0.4, out=out) is out and np.allclose(out, want, atol=0)
+    tr = np.empty((4, 10)).T  # non-contiguous out
+    qa.slerp(a, b, 0.4, out=tr)
+    assert np.array_equal(tr, want)
+    with pytest.raises(ValueError):
+        qa.slerp(a, b, 0.4, out=np.empty((10, 4), np.float32))
+    with pytest.raises(ValueError, match="`q`"):
+        qa.slerp(a, b[:, :3], 0.5)
+    with pytest.raises(TypeError):
+        qa.slerp(a, b, 1j)
+
+
+def test_slerp_float32(rng):
+    p, q = qa.random(100, rng, np.float32), qa.random(100, rng, np.float32)
+    r = qa.slerp(p, q, 0.3)
+    assert r.dtype == np.float32
+    assert np.allclose(r, qa.slerp(p.astype(float), q.astype(float), 0.3), atol=2e-6)
+    assert qa.slerp(p, q.astype(float), 0.3).dtype == np.float64
+    sig = I._slerp.serial.nopython_signatures
+    assert any("float32" in str(s) and "float64" not in str(s) for s in sig)
+
+
+def test_slerp_degenerate_pairs():
+    p = np.array([0.5, 0.5, 0.5, 0.5])
+    t = np.linspace(0, 1, 11)
+    assert np.allclose(qa.slerp(p, p, t), p, atol=1e-16)  # identical
+    assert np.allclose(qa.slerp(p, -p, t), p, atol=1e-16)  # antipodal, shortest: constant
+    anti = qa.slerp(p, -p, t, shortest=False)  # antipodal, no unique arc: the power convention
+    want = qa.multiply(p, np.stack([np.cos(np.pi * t), np.sin(np.pi * t), 0 * t, 0 * t], -1))
+    assert np.allclose(anti, want, atol=1e-15)
+    nan = qa.slerp([np.nan, 0, 0, 0], p, 0.5)
+    assert np.isnan(nan).all()
+
+
+def _mp_slerp(p, q, t):
+    p = [mpmath.mpf(float(x)) for x in p]
+    q = [mpmath.mpf(float(x)) for x in q]
+    t = mpmath.mpf(float(t))
+    if sum(a * b for a, b in zip(p, q)) < 0:
+        q = [-x for x in q]
+    a = mpmath.sqrt(sum((x - y) ** 2 for x, y in zip(p, q)))
+    b = mpmath.sqrt(sum((x + y) ** 2 for x, y in zip(p, q)))
+    th = 2 * mpmath.atan2(a, b)
+    if th == 0:
+        return [(1 - t) * x + t * y for x, y in zip(p, q)]
+    s = mpmath.sin(th)
+    return [(mpmath.sin((1 - t) * th) * x + mpmath.sin(t * th) * y) / s for x, y in zip(p, q)]
+
+
+def test_slerp_accuracy_mpmath(rng):
+    """Max abs error ≤ 4e-15 against 40 digits on adversarial pairs (inputs taken as exact)."""
+    mpmath.mp.dps = 40
+    base = qa.random(40, rng)
+    axis = rng.standard_normal((40, 3))
+    pairs = []
+    for eps in (0.0, 1e-15, 1e-12, 1e-8, 1e-4, 0.5, np.pi / 2 - 1e-9, np.pi - 1e-7, np.pi - 1e-12):
+        d = qa.from_rotvec(axis / np.linalg.norm(axis, axis=1, keepdims=True) * eps)
+        pairs.append((base, qa.multiply(base, d)))  # eps apart (rotation angle)
+    pairs.append((base, -base))  # antipodal
+    pairs.append((base, qa.random(40, rng)))
+    p = np.concatenate([a for a, _ in pairs])
+    q = np.concatenate([b for _, b in pairs])
+    t = np.tile(np.array([0, 1e-9, 0.1, 1 / 3, 0.5, 0.77, 1 - 1e-12, 1.0]), len(p) // 8 + 1)[: len(p)]
+    got = qa.slerp(p, q, t)
+    err = max(
+        float(max(abs(g - w) for g, w in zip(row, _mp_slerp(a, b, s))))
+        for row, a, b, s in zip(got, p, q, t)
+    )
+    assert err <= 4e-15, err
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-1, 2), st.integers(0, 2**32 - 1))
+def test_slerp_constant_speed_property(t, seed):
+    p, q = qa.random(2, seed)
+    total = float(qa.distance(p, q))  # ≤ π, and the shortest arc covers it
+    r = qa.slerp(p, q, t)
+    assert np.isclose(float(qa.distance(p, r)), abs(t) * total, atol=1e-12)
+    assert np.isclose(float(qa.distance(r, q)), abs(1 - t) * total, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------
+# Bézier, squad, unflip
+
+
+def test_bezier_controls_match_reference(rng):
+    keys = smooth_keys(rng, 12)
+    a, b = qa.bezier_controls(keys)
+    ra, rb = ref_controls(keys)
+    assert np.allclose(a, ra, atol=1e-14) and np.allclose(b, rb, atol=1e-14)
+    assert np.allclose(a[0], qa.slerp(keys[0], keys[1], 1 / 3), atol=1e-15)
+    assert np.allclose(b[-1], qa.slerp(keys[-1], keys[-2], 1 / 3), atol=1e-15)
+
+
+def test_bezier_matches_reference_and_broadcasts(rng):
+    q0, a, b, q1 = smooth_keys(rng, 4)
+    t = np.linspace(-0.2, 1.2, 15)
+    got = qa.bezier(q0, a, b, q1, t)
+    assert got.shape == (15, 4)
+    assert np.allclose(got, [ref_bezier(q0, a, b, q1, s) for s in t], atol=1e-14)
+    assert np.array_equal(qa.bezier(q0, a, b, q1, 0.0), q0)
+    assert np.array_equal(qa.bezier(q0, a, b, q1, 1.0), q1)
+    out = np.empty((15, 4))
+    assert qa.bezier(q0, a, b, q1, t, out=out) is out
+
+
+def test_two_keys_bezier_is_slerp(rng):
+    keys = smooth_keys(rng, 2, 0.8)
+    u = np.linspace(0, 1, 21)
+    got = qa.spline([0.0, 1.0], keys, u)
+    assert np.allclose(got, qa.slerp(keys[0], keys[1], u), atol=2e-15)
+
+
+def test_squad(rng):
+    keys = smooth_keys(rng, 6)
+    s = I.squad_controls(keys)
+    t = np.linspace(0, 1, 9)
+    got = qa.squad(keys[1], s[1], s[2], keys[2], t)
+    h = 2 * t * (1 - t)
+    want = [ref_slerp(ref_slerp(keys[1], keys[2], x), ref_slerp(s[1], s[2], x), y) for x, y in zip(t, h)]
+    assert np.allclose(got, want, atol=1e-14)
+    times = np.arange(6.0)
+    sp = qa.spline(times, keys, [1.0, 1.5, 2.0], method="squad")
+    assert np.allclose(sp, [keys[1], qa.squad(keys[1], s[1], s[2], keys[2], 0.5), keys[2]], atol=1e-14)
+
+
+def test_unflip(rng):
+    q = smooth_keys(rng, 50, 0.1)
+    signs = rng.choice([-1.0, 1.0], 50)
+    got = qa.unflip(q * signs[:, None])
+    assert np.allclose(got, q * signs[0], atol=0)
+    stacked = np.stack([q * signs[:, None], -q], axis=1)  # (50, 2, 4), scan along axis 0
+    u = qa.unflip(stacked)
+    assert np.allclose(u[:, 0], q * signs[0]) and np.allclose(u[:, 1], -q)
+    assert np.allclose(qa.unflip(np.swapaxes(stacked, 0, 1), axis=1), np.swapaxes(u, 0, 1))
+
+
+# ---------------------------------------------------------------------------
+# spline
+
+
+def test_spline_slerp_matches_scipy(rng):
+    times = np.cumsum(rng.uniform(0.1, 1.0, 40))
+    keys = smooth_keys(rng, 40) * rng.choice([-1, 1], 40)[:, None] * 1.001  # flips, non-unit
+    new = np.sort(rng.uniform(times[0], times[-1], 2000))
+    got = qa.spline(times, keys, new, method="slerp")
+    want = Slerp(times, R(keys))(new).as_quat(scalar_first=True)
+    assert same_rot(got, want, 1e-13)
+    shuffled = rng.permutation(new)  # any order, any shape
+    assert np.allclose(qa.spline(times, keys, shuffled.reshape(40, 50), method="slerp").reshape(-1, 4),
+                       qa.spline(times, keys, shuffled, method="slerp"), atol=0)
+    n = qa.spline(times, keys, new, method="nlerp")
+    assert same_rot(n, want, 1e-2) and np.allclose(np.linalg.norm(n, axis=-1), 1)
+
+
+def test_spline_bezier_even_times_is_segment_formula(rng):
+    keys = smooth_keys(rng, 15)
+    times = 2.0 + 0.5 * np.arange(15)
+    new = np.linspace(times[0], times[-1], 301)
+    got = qa.spline(times, keys, new)
+    a, b = ref_controls(keys)
+    seg = np.minimum(np.searchsorted(times, new, side="right") - 1, 13)
+    u = (new - times[seg]) / (times[seg + 1] - times[seg])
+    want = [ref_bezier(keys[n], a[n], b[n + 1], keys[n + 1], x) for n, x in zip(seg, u)]
+    assert np.allclose(got, want, atol=1e-14)
+    assert np.allclose(qa.spline(times, keys, times), keys, atol=0)  # through every key
+
+
+def test_spline_constant_speed_on_great_circle():
+    t = np.arange(10.0)
+    keys = qa.from_rotvec(np.outer(t * 0.3, [1, 2, 2]) / 3)  # evenly spaced on one circle
+    new = np.linspace(0, 9, 901)
+    for method in ("bezier", "squad", "slerp"):
+        r = qa.spline(t, keys, new, method=method)
+        step = qa.distance(r[:-1], r[1:])
+        assert np.allclose(step, 0.3 * 9 / 900, rtol=1e-9), method
+
+
+def test_spline_left_multiplication(rng):
+    times = np.cumsum(rng.uniform(0.2, 1.0, 12))
+    keys = smooth_keys(rng, 12)
+    r = qa.random(rng=rng)
+    new = np.linspace(times[0], times[-1], 200)
+    for method in ("bezier", "squad", "slerp"):
+        a = qa.spline(times, qa.multiply(r, keys), new, method=method)
+        b = qa.multiply(r, qa.spline(times, keys, new, method=method))
+        assert np.allclose(a, b, atol=1e-13), method
+
+
+def test_uneven_angular_velocity_continuous(rng):
+    times = np.cumsum(rng.choice([0.2, 1.0, 3.0], 10))
+    keys = smooth_keys(rng, 10, 0.4)
+    h = 1e-6
+    for n in range(1, 9):
+        tk = times[n]
+        r = qa.spline(times, keys, [tk - 2 * h, tk - h, tk, tk + h, tk + 2 * h])
+        left = qa.as_rotvec(qa.multiply(r[2], qa.conjugate(r[0]))) / (2 * h)
+        right = qa.as_rotvec(qa.multiply(r[4], qa.conjugate(r[2]))) / (2 * h)
+        assert np.allclose(left, right, atol=1e-4 * (1 + np.linalg.norm(left))), n
+    # without the scaling (plain controls) the velocity jumps at uneven keys
+    a, b = qa.bezier_controls(keys)
+    n = int(np.argmax(np.abs(np.diff(np.diff(times)))) + 1)
+    tk = times[n]
+    u_in, u_out = h / (times[n] - times[n - 1]), h / (times[n + 1] - times[n])
+    lin = qa.bezier(keys[n - 1], a[n - 1], b[n], keys[n], 1 - u_in)
+    lout = qa.bezier(keys[n], a[n], b[n + 1], keys[n + 1], u_out)
+    wl = qa.as_rotvec(qa.multiply(keys[n], qa.conjugate(lin))) / h
+    wr = qa.as_rotvec(qa.multiply(lout, qa.conjugate(keys[n]))) / h
+    assert not np.allclose(wl, wr, atol=1e-3)
+
+
+def test_spline_integer_stamps_and_float32(rng):
+    keys = smooth_keys(rng, 8).astype(np.float32)
+    times = 1403715524907143168 + np.arange(8, dtype=np.int64) * 5_000_000
+    new = times[:-1] + 2_500_000
+    r = qa.spline(times, keys, new)
+    assert r.dtype == np.float32 and r.shape == (7, 4)
+    ref = qa.spline(np.arange(8.0), keys.astype(float), np.arange(7) + 0.5)
+    assert np.allclose(r, ref, atol=3e-6)
+
+
+def test_spline_bad_inputs(rng):
+    keys = smooth_keys(rng, 5)
+    with pytest.raises(ValueError, match=r"strictly increasing.*times\[3\]"):
+        qa.spline([0, 1, 2, 2, 3], keys, [0.5])
+    with pytest.raises(ValueError, match="got -2.5 at flat index 1"):
+        qa.spline(np.arange(5.0), keys, [0.5, -2.5, 9.0])
+    with pytest.raises(ValueError, match="nan"):
+        qa.spline(np.arange(5.0), keys, [np.nan])
+    with pytest.raises(ValueError, match="times"):
+        qa.spline(np.arange(4.0), keys, [0.5])
+    with pytest.raises(ValueError, match="keys"):
+        qa.spline(np.arange(5.0), keys[:, :3], [0.5])
+    with pytest.raises(ValueError, match="at least 2"):
+        qa.spline([0.0], keys[:1], [0.0])
+    with pytest.raises(ValueError, match="method"):
+        qa.spline(np.arange(5.0), keys, [0.5], method="cubic")
+
+
+# ---------------------------------------------------------------------------
+# angular velocity
+
+
+def test_angular_velocity_constant_rate_uneven_times(rng):
+    times = np.cumsum(rng.uniform(0.01, 0.2, 30))
+    w_body = np.array([0.3, -1.1, 0.7])
+    q0 = qa.random(rng=rng)
+    q = qa.multiply(q0, qa.from_rotvec(np.outer(times, w_body)))  # body-frame constant rate
+    q *= rng.choice([-1, 1], 30)[:, None]  # sign flips
+    body = qa.angular_velocity(q, times, frame="body")
+    assert np.allclose(body, w_body, atol=1e-12)
+    space = qa.angular_velocity(q, times)
+    assert np.allclose(space, qa.rotate(q, body), atol=1e-12)
+    step = (R(q[1:]) * R(q[:-1]).inv()).as_rotvec() / np.diff(times)[:, None]  # scipy oracle
+    assert np.allclose(space[0], step[0], atol=1e-12) and np.allclose(space[-1], step[-1], atol=1e-12)
+    with pytest.raises(ValueError, match="frame"):
+        qa.angular_velocity(q, times, frame="world")
+    with pytest.raises(ValueError, match="strictly increasing"):
+        qa.angular_velocity(q, times[::-1])
+
+
+# ---------------------------------------------------------------------------
+# real streams
+
+
+def _euroc(data_dir):
+    a = np.loadtxt(data_dir / "euroc_v102_groundtruth.csv", delimiter=",", comments="#", max_rows=3000)
+    return (a[:, 0] - a[0, 0]) * 1e-9, a[:, 4:8]
+
+
+def _tum(data_dir):
+    a = np.loadtxt(data_dir / "tum_freiburg1_xyz_groundtruth.txt", comments="#")
+    return a[:, 0], qa.from_xyzw(a[:, 4:8])
+
+
+@pytest.mark.parametrize("load", [_euroc, _tum])
+def test_real_stream_bezier_beats_slerp(data_dir, load):
+    t, q = load(data_dir)
+    keep = np.arange(0, len(t), 10)
+    keys_t, keys = t[keep], q[keep]
+    inner = np.setdiff1d(np.arange(keep[0], keep[-1] + 1), keep)
+    truth = q[inner]
+    err = {}
+    for method in ("bezier", "slerp"):
+        r = qa.spline(keys_t, keys, t[inner], method=method)
+        err[method] = float(np.sqrt(np.mean(qa.distance(r, truth) ** 2)))
+    assert err["bezier"] < err["slerp"], err
