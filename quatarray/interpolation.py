@@ -467,11 +467,12 @@ def _flat(kern, *extra):
     def run(*args):
         *ins, out = args
         ins = [np.ascontiguousarray(a).reshape(-1) for a in ins]
+        extra_t = [out.dtype.type(x) for x in extra]  # float32 kernels stay float32
         if out.flags.c_contiguous:
-            kern(*ins, *extra, out.reshape(-1))
+            kern(*ins, *extra_t, out.reshape(-1))
         else:
             tmp = np.empty(out.shape, out.dtype)
-            kern(*ins, *extra, tmp.reshape(-1))
+            kern(*ins, *extra_t, tmp.reshape(-1))
             out[...] = tmp
 
     return run
@@ -777,8 +778,8 @@ def _times(times, k=None, name="times"):
     if bad.any():
         i = int(np.argmax(bad))
         raise ValueError(
-            f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {t[i + 1]!r} "
-            f"after {name}[{i}] = {t[i]!r}."
+            f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {t[i + 1].item()} "
+            f"after {name}[{i}] = {t[i].item()}."
         )
     return t
 
@@ -851,8 +852,8 @@ def spline(times, keys, new_times, method="bezier"):
     if bad.any():
         i = int(np.argmax(bad))
         raise ValueError(
-            f"Expected `new_times` within [{t_raw[0]!r}, {t_raw[-1]!r}] (the key times), "
-            f"got {nt_raw.reshape(-1)[i]!r} at flat index {i}."
+            f"Expected `new_times` within [{t_raw[0].item()}, {t_raw[-1].item()}] (the key times), "
+            f"got {nt_raw.reshape(-1)[i].item()} at flat index {i}."
         )
 
     from .algebra import normalize
