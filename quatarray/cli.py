@@ -206,7 +206,8 @@ class _FileTimes:
 def cmd_resample(args):
     if args.scheduler:
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
-                          method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force)
+                          method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force,
+                          in_rate=args.in_rate, layout=args.layout)
     import quatarray as qa
 
     newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
@@ -538,16 +539,7 @@ def _optional(module, what):
 
 
 def _dask_call(fn, *a, **kw):
-    mod = _optional("dask", "--scheduler")
-    func = getattr(mod, fn, None)
-    if func is None:
-        raise UsageError(f"--scheduler: quatarray.dask has no {fn} yet")
-    import inspect
-
-    params = inspect.signature(func).parameters
-    if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
-        kw = {k: v for k, v in kw.items() if k in params}
-    return int(func(*a, **kw) or 0)
+    return int(getattr(_optional("dask", "--scheduler"), fn)(*a, **kw) or 0)
 
 
 def cmd_demo(args):
