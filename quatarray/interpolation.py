@@ -518,8 +518,8 @@ def nlerp(p, q, t, shortest=True, out=None):
     Examples
     --------
     >>> import numpy as np, quatarray as qa
-    >>> np.round(qa.nlerp([1, 0, 0, 0], [0, 0, 0, -1], 0.5), 6)  # -q is nearer
-    array([0.707107, 0.      , 0.      , 0.707107])
+    >>> qa.nlerp([1, 0, 0, 0], [-0.6, 0, 0, -0.8], 0.5)  # -q is nearer: blend with (0.6, 0, 0, 0.8)
+    array([0.89442719, 0.        , 0.        , 0.4472136 ])
     """
     return elementwise(_flat(_nlerp, 1.0 if shortest else 0.0), _pqt(p, q, t), [Q], out)
 
@@ -749,7 +749,7 @@ def unflip(q, axis=0):
     Examples
     --------
     >>> import quatarray as qa
-    >>> qa.unflip([[1, 0, 0, 0], [-1, 0, 0, 0], [-0.8, -0.6, 0, 0]])
+    >>> qa.unflip([[1, 0, 0, 0], [-1, 0, 0, 0], [-0.8, -0.6, 0, 0]]) + 0.0  # + 0.0: no -0
     array([[1. , 0. , 0. , 0. ],
            [1. , 0. , 0. , 0. ],
            [0.8, 0.6, 0. , 0. ]])
