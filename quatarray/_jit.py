@@ -19,6 +19,15 @@ Kernel layers
 -------------
 ``element``
     Per-element math on scalars and tuples (one quaternion, one vector).
+    The default for element functions: compiled once as its own function
+    (an LLVM call from the loop that uses it), cached, and cheap to compile.
+``inline``
+    Like ``element`` but inlined into every caller at numba-IR level. Use it
+    for small per-row math inside row loops that must vectorise (the
+    branch-free trigonometry of ``_trig`` and the element functions that
+    call it): a call that LLVM does not inline stops the loop vectoriser.
+    Not for large or branchy functions (the loop would not vectorise
+    anyway, and each caller compiles its own copy).
 ``rowloop``
     A batched loop over the leading axis, written once with ``prange``;
     it is compiled as a serial and as a parallel dispatcher and the call
@@ -54,6 +63,16 @@ prange = numba.prange
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
     return numba.njit(**_OPTIONS)(fn)
+
+
+def inline(fn):
+    """An element function inlined into its callers at numba-IR level.
+
+    A plain :func:`element` stays an LLVM call, which stops the loop
+    vectoriser; use this for the small per-row math of loops that must run
+    as SIMD (see the module docstring).
+    """
+    return numba.njit(inline="always", **_OPTIONS)(fn)
 
 
 class RowLoop:

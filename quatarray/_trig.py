@@ -18,20 +18,9 @@ Constants go through :func:`quatarray._jit.like`, so float32 stays float32
 (the float32 results are then accurate to float32 rounding).
 """
 
-import numba
 import numpy as np
 
-from ._jit import _OPTIONS, like
-
-
-def inline(fn):
-    """An element function inlined into its caller at numba-IR level.
-
-    A plain ``element`` stays an LLVM call, which stops the loop vectoriser;
-    the interpolation kernels need their per-row math inlined to run as SIMD.
-    (Request to the lead: move this next to ``element`` in ``_jit``.)
-    """
-    return numba.njit(inline="always", **_OPTIONS)(fn)
+from ._jit import inline, like
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01

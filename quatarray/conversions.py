@@ -10,7 +10,7 @@ broadcast like numpy; float32 stays float32 and float64 stays float64.
 Euler angles live in :mod:`quatarray.euler`.
 
 The element functions of the rotation-vector and axis-angle kernels are
-inlined at numba-IR level (``_trig.inline``) and use the branch-free
+inlined at numba-IR level (``_jit.inline``) and use the branch-free
 polynomial sine, cosine and arctangent of :mod:`quatarray._trig`, so their
 row loops compile to SIMD code (about 3× faster than with libm calls).
 """
@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, like, prange, rowloop
-from ._trig import half_arc, inline, sincos
+from ._jit import element, inline, like, prange, rowloop
+from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, is_weak, shape_error
 
 Q = (4,)

@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import kernel, like, prange, rowloop
-from ._trig import half_arc, inline, sincos
+from ._jit import inline, kernel, like, prange, rowloop
+from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, shape_error
 
 Q = (4,)
