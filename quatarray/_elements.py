@@ -13,7 +13,7 @@ import numpy as np
 
 from numba.extending import overload
 
-from ._jit import CACHE, element, flat_load, flat_rows, flat_store, like
+from ._jit import CACHE, element, flat_load, flat_rows, flat_store, inline, like
 
 
 # Row access. ``load4(a, i)`` reads row i of an (n, 4) array, ``load3`` of an
@@ -124,6 +124,16 @@ def qscale(q, s):
 @element
 def qneg(q):
     return (-q[0], -q[1], -q[2], -q[3])
+
+
+@inline
+def canonical_flip(q):
+    """True when scipy's canonical form (w > 0, ties to the first non-zero of
+    x, y, z being positive) needs the sign of q flipped. (Bitwise operators,
+    not ``and``/``or``: no branches, so row loops stay vectorisable.)"""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    return (w < zero) | ((w == zero) & ((x < zero) | ((x == zero) & ((y < zero) | ((y == zero) & (z < zero))))))
 
 
 @element

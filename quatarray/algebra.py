@@ -76,15 +76,8 @@ def _power(q, t, out):
 @rowloop
 def _canonical(q, out):
     for i in prange(q.shape[0]):
-        w, x, y, z = E.load4(q, i)
-        zero = like(w, 0.0)
-        flip = w < zero or (
-            w == zero and (x < zero or (x == zero and (y < zero or (y == zero and z < zero))))
-        )
-        if flip:
-            E.store4(out, i, (-w, -x, -y, -z))
-        else:
-            E.store4(out, i, (w, x, y, z))
+        a = E.load4(q, i)
+        E.store4(out, i, E.qneg(a) if E.canonical_flip(a) else a)
 
 
 @rowloop

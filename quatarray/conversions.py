@@ -185,16 +185,6 @@ def shepperd(a):
 
 
 @inline
-def canonical_flip(q):
-    """True when scipy's canonical form (w > 0, ties to the first non-zero of
-    x, y, z being positive) needs the sign of q flipped. (Bitwise operators,
-    not ``and``/``or``: no branches, so row loops stay vectorisable.)"""
-    w, x, y, z = q
-    zero = like(w, 0.0)
-    return (w < zero) | ((w == zero) & ((x < zero) | ((x == zero) & ((y < zero) | ((y == zero) & (z < zero))))))
-
-
-@inline
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]."""
@@ -204,7 +194,7 @@ def qrotvec(q):
     two = like(w, 2.0)
     f = two * half_arc(un, aw) / un
     f = (two / aw) if un == like(w, 0.0) else f  # identity: 0·f = 0; zero q: 0·inf = nan
-    f = -f if canonical_flip(q) else f
+    f = -f if E.canonical_flip(q) else f
     return (f * x, f * y, f * z)
 
 
@@ -221,7 +211,7 @@ def qaxis_angle(q):
             return (like(w, 1.0), zero, zero), ang
         nan = like(w, np.nan)
         return (nan, nan, nan), nan
-    k = -un if canonical_flip(q) else un
+    k = -un if E.canonical_flip(q) else un
     return (x / k, y / k, z / k), ang
 
 
