@@ -27,7 +27,11 @@ Kernel layers
     branch-free trigonometry of ``_trig`` and the element functions that
     call it): a call that LLVM does not inline stops the loop vectoriser.
     Not for large or branchy functions (the loop would not vectorise
-    anyway, and each caller compiles its own copy).
+    anyway, and each caller compiles its own copy). Check the result
+    (``inspect_asm``: packed ``ymm`` arithmetic): several IR-inlined copies
+    in one large loop can keep their branches and stop the vectoriser, and
+    then an ``element`` wrapper, which LLVM inlines after forming selects,
+    does better (``euler.sincos``).
 ``rowloop``
     A batched loop over the leading axis, written once with ``prange``;
     it is compiled as a serial and as a parallel dispatcher and the call

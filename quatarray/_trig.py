@@ -13,14 +13,23 @@ result (the fdlibm kernels, tested in ``tests/test_interpolation.py``).
 ``half_arc(a, b)``
     atan2(a, b) for a, b ≥ 0 (a result in [0, π/2]); used for the half
     angle of an arc from the chord lengths |p − q| and |p + q|.
+``atan2(y, x)``
+    atan2 in all four quadrants, with libm's signed zeros and ±π (nan in,
+    nan out; ``atan2(±inf, ±inf)`` gives nan); within 2 ulp in float64.
+``sincos_limit(x)``
+    The largest |x| for which ``sincos`` is accurate to the rounding of x's
+    float type (callers with larger arguments fall back to libm).
 
 Constants go through :func:`quatarray._jit.like`, so float32 stays float32
-(the float32 results are then accurate to float32 rounding).
+(the float32 results are then accurate to float32 rounding; for ``sincos``
+only up to ``sincos_limit``).
 """
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
-from ._jit import inline, like
+from ._jit import CACHE, inline, like
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01
@@ -120,3 +129,50 @@ def half_arc(a, b):
     y = off_hi + (r + off_lo)
     refl = (like(a, 2.0 * PIO4_HI) - y) + like(a, 2.0 * PIO4_LO)
     return refl if swap else y
+
+
+@inline
+def atan2(y, x):
+    """atan2(y, x) in all four quadrants, branch-free (same reduction as
+    :func:`half_arc`, then the quadrant).
+
+    With lo = min(|x|, |y|), hi = max(|x|, |y|): atan2(|y|, |x|) is
+    k·π/4 ± atan(u) with |u| ≤ tan(π/8); k·π/4 is added in two parts.
+    """
+    zero = like(x, 0.0)
+    one = like(x, 1.0)
+    ax = abs(x)
+    ay = abs(y)
+    swap = ay > ax
+    lo = ax if swap else ay
+    hi = ay if swap else ax
+    big = lo > like(x, TAN_PI8) * hi
+    num = (lo - hi) if big else lo
+    den = (lo + hi) if big else hi
+    u = num / den
+    u = zero if (hi == zero) & (lo == zero) else u  # atan2(±0, ±0); nan stays nan
+    r = atan_small(u)
+    # r, π/2 − r (|y| > |x|), π/2 + r (and x < 0), π − r (x < 0); each ± π/4 when big
+    neg = np.copysign(one, x) < zero
+    s = -one if swap != neg else one
+    k = (like(x, 2.0) if swap else (like(x, 4.0) if neg else zero)) + (s if big else zero)
+    return np.copysign(k * like(x, PIO4_HI) + (s * r + k * like(x, PIO4_LO)), y)
+
+
+# sincos's reduction is exact for |k| < 2**20 in float64. In float32 the
+# float64 pieces of π/2 round to float32 and the reduction loses about
+# 4e-8·|k| (absolute), so float32 is trusted only for small |x|.
+SINCOS_LIMIT_64 = 1.0e6
+SINCOS_LIMIT_32 = 4.0
+
+
+def sincos_limit(x):
+    """The largest |x| for which :func:`sincos` is accurate to x's float rounding."""
+    return SINCOS_LIMIT_32 if isinstance(x, np.float32) else SINCOS_LIMIT_64
+
+
+@overload(sincos_limit, jit_options={"cache": CACHE})
+def _sincos_limit(x):
+    if isinstance(x, types.Float):
+        lim = np.float32(SINCOS_LIMIT_32) if x.bitwidth == 32 else np.float64(SINCOS_LIMIT_64)
+        return lambda x: lim

@@ -14,21 +14,21 @@ scipy uses, with scipy's angle ranges and gimbal-lock rule.
 
 Speed: both conversions are bound by trigonometry. libm's ``atan2``,
 ``sin`` and ``cos`` are opaque calls that stop LLVM from vectorising a loop,
-so this module has its own branch-free ``atan2`` and ``sin``/``cos``
-(Cephes' rational and polynomial approximations, within 2 ulp in float64),
-and the loops read and write flat contiguous views (fixed strides 4 and 3),
-which LLVM turns into SIMD code.
+so this module uses the branch-free ``atan2`` and ``sincos`` of
+:mod:`quatarray._trig` (within 2 ulp in float64), and the loops read and
+write flat contiguous views (fixed strides 4 and 3), which LLVM turns into
+SIMD code.
 """
 
 import math
 import warnings
 
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from . import _elements as E
-from ._jit import CACHE, element, like, prange, rowloop
+from . import _trig
+from ._jit import element, like, prange, rowloop
+from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
 
 _ALLOWED = (
@@ -45,109 +45,24 @@ _GIMBAL = (
 )
 
 # --------------------------------------------------------------------------
-# vectorisable elementary functions
-
-# Cephes atan: atan(u) = u + u z P(z)/Q(z), z = u², for |u| <= tan(π/8).
-_AP = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
-       -1.228866684490136173410e2, -6.485021904942025371773e1)
-_AQ = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
-       4.853903996359136964868e2, 1.945506571482613964425e2)
-_TAN_PI_8 = 0.41421356237309504880
-_MOREBITS = 6.123233995736765886130e-17  # π/2 - float64(π/2)
-
-
-@element
-def atan2(y, x):
-    """atan2(y, x) without a libm call, so loops using it vectorise.
-
-    Same quadrants and signed zeros as ``math.atan2`` (nan in → nan out);
-    within 2 ulp of libm in float64. ``atan2(±inf, ±inf)`` gives nan.
-    """
-    zero = like(x, 0.0)
-    ax = abs(x)
-    ay = abs(y)
-    swap = ay > ax
-    mn = ax if swap else ay
-    mx = ay if swap else ax
-    # reduce min/max in [0, 1] to |u| <= tan(π/8): u = (t - 1)/(t + 1), atan(t) = π/4 + atan(u)
-    big = mn > like(x, _TAN_PI_8) * mx
-    num = mn - mx if big else mn
-    den = mn + mx if big else mx
-    u = num / den
-    u = zero if (mx == zero) & (mn == zero) else u  # atan2(±0, ±0); nan stays nan
-    z = u * u
-    p = (((like(x, _AP[0]) * z + like(x, _AP[1])) * z + like(x, _AP[2])) * z + like(x, _AP[3])) * z + like(
-        x, _AP[4]
-    )
-    q = ((((z + like(x, _AQ[0])) * z + like(x, _AQ[1])) * z + like(x, _AQ[2])) * z + like(x, _AQ[3])) * z + like(
-        x, _AQ[4]
-    )
-    r = u + u * (z * p / q)
-    r = r + (like(x, math.pi / 4) + like(x, 0.5 * _MOREBITS) if big else zero)
-    # quadrant: r, π/2 − r (|y| > |x|), π/2 + r (and x < 0), π − r (x < 0)
-    neg = math.copysign(like(x, 1.0), x) < zero
-    hi = like(x, math.pi / 2) if swap else (like(x, math.pi) if neg else zero)
-    lo = like(x, _MOREBITS) if swap else (like(x, 2 * _MOREBITS) if neg else zero)
-    r = hi + ((-r if swap != neg else r) + lo)
-    return math.copysign(r, y)
-
-
-# Cephes sin/cos on |r| <= π/4 after r = x - k π/2 (Cody–Waite, π/2 in three parts).
-_SIN = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
-        -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1)
-_COS = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
-        2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
-# (π/2 split, largest |x| the split reduces exactly) per float type
-_PIO2_64 = (2 * 7.85398125648498535156e-1, 2 * 3.77489470793079817668e-8, 2 * 2.69515142907905952645e-15, 1.0e6)
-_PIO2_32 = (2 * 0.78515625, 2 * 2.4187564849853515625e-4, 2 * 3.77489497744594108e-8, 8192.0)
-
-
-def _pio2_split(x):
-    """(π/2 in three parts, reduction limit) in the float type of ``x``."""
-    return _PIO2_32 if isinstance(x, np.float32) else _PIO2_64
-
-
-@overload(_pio2_split, jit_options={"cache": CACHE})
-def _pio2_split_impl(x):
-    if isinstance(x, types.Float):
-        c = _PIO2_32 if x.bitwidth == 32 else _PIO2_64
-        f = np.float32 if x.bitwidth == 32 else np.float64
-        c0, c1, c2, c3 = f(c[0]), f(c[1]), f(c[2]), f(c[3])
-
-        def impl(x):
-            return (c0, c1, c2, c3)
-
-        return impl
+# per-element helpers
 
 
 @element
 def sincos(x):
-    """(sin x, cos x) without libm calls, for |x| up to the limit in ``_PIO2_*``
-    (1e6 in float64, 8192 in float32); larger |x| lose accuracy (see ``beyond``)."""
-    p1, p2, p3, _ = _pio2_split(x)
-    k = np.floor(x * like(x, 2 / math.pi) + like(x, 0.5))
-    r = ((x - k * p1) - k * p2) - k * p3
-    z = r * r
-    s = r + r * z * (
-        ((((like(x, _SIN[0]) * z + like(x, _SIN[1])) * z + like(x, _SIN[2])) * z + like(x, _SIN[3])) * z
-         + like(x, _SIN[4])) * z + like(x, _SIN[5])
-    )
-    c = (like(x, 1.0) - like(x, 0.5) * z) + z * z * (
-        ((((like(x, _COS[0]) * z + like(x, _COS[1])) * z + like(x, _COS[2])) * z + like(x, _COS[3])) * z
-         + like(x, _COS[4])) * z + like(x, _COS[5])
-    )
-    quadrant = np.int64(k) & 3
-    sn = c if (quadrant & 1) == 1 else s
-    cs = s if (quadrant & 1) == 1 else c
-    sn = -sn if quadrant >= 2 else sn
-    cs = -cs if quadrant == 1 or quadrant == 2 else cs
-    return sn, cs
+    """:func:`quatarray._trig.sincos` as a call that LLVM inlines: inlined at
+    numba-IR level three times into :func:`_from_euler`'s loop it leaves
+    branches that stop the vectoriser (about 2× slower in float64, 4× in
+    float32), while this small function is inlined by LLVM after its
+    selects are formed."""
+    return _trig.sincos(x)
 
 
 @element
 def beyond(x):
-    """True where |x| exceeds :func:`sincos`'s reduction limit (inf too, not nan)."""
-    return abs(x) > _pio2_split(x)[3]
+    """True where |x| exceeds the range in which :func:`quatarray._trig.sincos`
+    is accurate (inf too, not nan): those rows are redone with libm."""
+    return abs(x) > sincos_limit(x)
 
 
 @element
@@ -431,6 +346,6 @@ def from_euler(seq, angles, degrees=False):
     far = np.empty(flat.shape[0], np.bool_)
     args = (flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out, far)
     _from_euler(*args)
-    if far.any():  # rare: angles beyond ±2·10⁶ rad (float32: ±16384) or inf
+    if far.any():  # rare: angles beyond ±2·10⁶ rad (float32: ±8) or inf
         _from_euler_far(*args)
     return out.reshape(a.shape[:-1] + (4,))

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation as R
 
 import quatarray as qa
-from quatarray import euler
+from quatarray import _trig, euler
 
 TAIT_BRYAN = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx"]
 PROPER = ["xyx", "xzx", "yxy", "yzy", "zxz", "zyz"]
@@ -285,6 +285,16 @@ def test_from_euler_huge_angles_use_libm():
     assert np.abs(qa.from_euler("ZYX", a32) - scipy_quat("ZYX", a32)).max() < 1e-6
 
 
+def test_from_euler_float32_around_the_fast_range():
+    # float32 half angles beyond _trig.SINCOS_LIMIT_32 are redone with libm
+    lim = 2 * _trig.SINCOS_LIMIT_32
+    a = (np.linspace(-8 * lim, 8 * lim, 401)[:, None] * [1.0, 0.5, -0.7]).astype(np.float32)
+    a[::7] = np.float32(lim) * np.array([1, -1, 1], np.float32)  # exactly at the limit
+    got = qa.from_euler("zyx", a)
+    assert got.dtype == np.float32
+    assert np.abs(got - scipy_quat("zyx", a)).max() < 3e-7
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda v: np.linalg.norm(v) > 1e-3),
@@ -313,17 +323,19 @@ def ulps(got, ref):
 
 @pytest.fixture(scope="module")
 def loops():
+    """Loops over quatarray._trig's atan2 and sincos (the ones the euler kernels use),
+    compiled as the kernels are (numpy's error model: 0/0 is nan, not an exception)."""
     from numba import njit
 
-    @njit
+    @njit(error_model="numpy")
     def atan2_loop(y, x, out):
         for i in range(y.shape[0]):
-            out[i] = euler.atan2(y[i], x[i])
+            out[i] = _trig.atan2(y[i], x[i])
 
-    @njit
+    @njit(error_model="numpy")
     def sincos_loop(x, s, c):
         for i in range(x.shape[0]):
-            s[i], c[i] = euler.sincos(x[i])
+            s[i], c[i] = _trig.sincos(x[i])
 
     return atan2_loop, sincos_loop
 
@@ -363,7 +375,9 @@ def test_sincos_accuracy(loops):
     small = np.abs(x) < 1
     assert ulps(s[small], np.sin(x[small])).max() <= 2
     assert np.array_equal(np.signbit(s[:10002][x[:10002] == 0]), np.signbit(x[:10002][x[:10002] == 0]))
-    x32 = rng.uniform(-8192, 8192, 10000).astype(np.float32)
+    # float32 within the range where the kernels trust it (beyond it they use libm)
+    lim = _trig.SINCOS_LIMIT_32
+    x32 = rng.uniform(-lim, lim, 10000).astype(np.float32)
     s32, c32 = np.empty_like(x32), np.empty_like(x32)
     loops[1](x32, s32, c32)
     assert np.abs(s32 - np.sin(x32.astype(np.float64))).max() < 2e-7
