@@ -14,6 +14,7 @@ import numpy as np
 from numba.extending import overload
 
 from ._jit import CACHE, element, flat_load, flat_rows, flat_store, inline, like
+from ._trig import atan2
 
 
 # Row access. ``load4(a, i)`` reads row i of an (n, 4) array, ``load3`` of an
@@ -176,10 +177,12 @@ def qrotate(q, v):
     )
 
 
-@element
+@inline
 def half_angle(q):
-    """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q."""
-    return np.arctan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
+    """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q
+    (0 for the zero quaternion). Branch-free (``_trig.atan2``), so the loops
+    using it vectorise."""
+    return atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
 
 
 @element
