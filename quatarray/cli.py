@@ -24,6 +24,7 @@ from .io.formats import FORMATS
 METHODS = ("bezier", "slerp", "nlerp", "squad")
 TARGETS = "quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic)"
 QUAT_FIELDS = ["qw", "qx", "qy", "qz"]
+_PIECE = 1 << 16  # rows per kernel call in convert (see cmd_convert)
 
 
 # --------------------------------------------------------------------------
@@ -124,13 +125,16 @@ def cmd_convert(args):
         for ch in reader:
             n = len(ch)
             ch = clean(ch)
-            if len(ch):
-                with warnings.catch_warnings(record=True) as caught:
-                    warnings.simplefilter("always")
-                    # an .npy OUT hands out a map of its next rows: the kernel writes into the file
-                    out = fn(ch.data, out=w.buffer(len(ch), ch.data.dtype))
-                lock += sum(1 for c in caught if "gimbal" in str(c.message).lower())
-                w.write(out, ch.t, ch.pos)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                # An .npy OUT lends reused, already-faulted arrays for the kernel's output
+                # and copies them into the file in a background thread. Pieces of
+                # _PIECE rows keep those arrays small and the kernel on its serial
+                # variant: the second core is the writer's.
+                for a in range(0, len(ch), _PIECE):
+                    part = ch.slice(a, a + _PIECE)
+                    w.write(fn(part.data, out=w.buffer(len(part), part.data.dtype)), part.t, part.pos)
+            lock += any("gimbal" in str(c.message).lower() for c in caught)
             bar.update(n)
         if w.rows == 0:
             raise _no_rows(args.IN)

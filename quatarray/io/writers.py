@@ -138,18 +138,26 @@ class NpyWriter(Writer):
     """``.npy`` written incrementally: a header with room for any row count, then the
     chunks appended; the header is rewritten with the final count at the end.
 
-    :meth:`buffer` hands out a memory map of the file's next rows, so a kernel
-    can write its results straight into the file (``out=``) with no copy; the
-    map is released when the next one is handed out, so resident memory stays
-    bounded.
+    :meth:`buffer` lends one of two reused in-memory arrays (``out=`` for the
+    kernels); :meth:`write` hands it to a background thread that copies it
+    into the file with ``pwrite`` while the caller computes the next chunk
+    into the other array. Their pages are faulted in once; a fresh array per
+    chunk, or a memory map of the file, would page-fault (and have the system
+    zero) every output page again, which costs about as much as the kernel
+    itself, and copying into the file would not overlap the computing.
+    Resident memory stays bounded by two chunks of output.
     """
 
     def __init__(self, path, core):
         super().__init__(path)
         self.core = core
         self.dtype = None
-        self.f = open(self.tmp, "w+b")
-        self._buf = None
+        self.f = open(self.tmp, "w+b", buffering=0)  # unbuffered: data goes by os.pwrite
+        self._scratch = [None, None]  # the two arrays buffer() lends, reused chunk after chunk
+        self._lent = None  # index of the array lent and not yet written
+        self._next = 0  # the array to lend next (the other one may be in flight)
+        self._pool = None  # the background writer (one thread), started on the first write
+        self._flight = None  # its pending write
 
     def _header(self, rows):
         shape = (rows,) + self.core
@@ -173,34 +181,68 @@ class NpyWriter(Writer):
         return self.head + self.rows * self.rowbytes
 
     def buffer(self, n, dtype):
-        """An ``(n,) + core`` array mapped onto the file's next ``n`` rows; pass it
-        (or a leading slice of it) to :meth:`write` once filled."""
+        """An ``(n,) + core`` array for the next ``n`` rows; pass it (or a leading
+        slice of it) to :meth:`write` once filled. Its storage comes back two
+        calls later, so write each one before asking for the next."""
         self._start(dtype)
-        self._buf = None
+        self._lent = None
         if n == 0 or np.dtype(dtype) != self.dtype:
             return None
-        self.f.truncate(self._end() + n * self.rowbytes)
-        self._buf = np.memmap(self.f, self.dtype, "r+", offset=self._end(), shape=(n,) + self.core)
-        return self._buf
+        k = self._next
+        if self._scratch[k] is None or self._scratch[k].shape[0] < n:
+            self._scratch[k] = np.empty((n,) + self.core, self.dtype)
+        self._lent = k
+        return self._scratch[k][:n]
+
+    def _pwrite(self, data, at):
+        view = memoryview(data).cast("B")
+        while view:  # a write may take fewer bytes than asked (large writes, signals)
+            done = os.pwrite(self.f.fileno(), view, at)
+            view, at = view[done:], at + done
+
+    def _wait(self):
+        """Wait for the write in flight; its error (a full disk, …) is raised here."""
+        flight, self._flight = self._flight, None
+        if flight is not None:
+            flight.result()
 
     def write(self, data, t=None, pos=None):
-        buf, self._buf = self._buf, None
-        if buf is not None and isinstance(data, np.ndarray) and data.shape[0] <= buf.shape[0] and (
-            data.__array_interface__["data"][0] == buf.__array_interface__["data"][0]
-        ):
-            self.rows += data.shape[0]  # already in place
+        lent, self._lent = self._lent, None
+        scratch = self._scratch[lent] if lent is not None else None
+        own = (
+            scratch is not None and isinstance(data, np.ndarray) and data.dtype == self.dtype
+            and data.flags.c_contiguous and data.shape[1:] == self.core and data.shape[0] <= scratch.shape[0]
+            and data.__array_interface__["data"][0] == scratch.__array_interface__["data"][0]
+        )
+        if not own:  # the caller's own array, which it may reuse: written now
+            data = np.ascontiguousarray(data)
+            self._start(data.dtype)
+            if data.dtype != self.dtype:
+                data = data.astype(self.dtype)
+            self._wait()
+            self._pwrite(data, self._end())
+            self.rows += data.shape[0]
             return
-        del buf
-        data = np.ascontiguousarray(data)
-        self._start(data.dtype)
-        if data.dtype != self.dtype:
-            data = data.astype(self.dtype)
-        self.f.seek(self._end())
-        self.f.write(memoryview(data).cast("B"))
+        self._wait()  # the other array's write: done before this one is queued
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="quatarray-npy-writer")
+        self._flight = self._pool.submit(self._pwrite, data, self._end())
         self.rows += data.shape[0]
+        self._next = 1 - lent
+
+    def _stop(self):
+        try:
+            self._wait()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown()
+            self._pool = None
+            self._scratch = [None, None]
 
     def _finish(self):
-        self._buf = None
+        self._stop()
         self._start(np.float64)
         self.f.truncate(self._end())
         self.f.seek(0)
@@ -208,8 +250,12 @@ class NpyWriter(Writer):
         self.f.close()
 
     def _release(self):
-        self._buf = None
-        self.f.close()
+        try:
+            self._stop()
+        except OSError:
+            pass  # the run is being abandoned anyway; the temporary file goes
+        finally:
+            self.f.close()
 
 
 def _table(cols, data, t, pos):
