@@ -177,6 +177,22 @@ def qrotate(q, v):
     )
 
 
+@element
+def qmatrix(q):
+    """Row-major 3×3 rotation matrix of q/|q| (9-tuple); zero q gives nan."""
+    w, x, y, z = q
+    s = like(w, 2.0) / qdot(q, q)
+    one = like(w, 1.0)
+    xx, yy, zz = s * x * x, s * y * y, s * z * z
+    xy, xz, yz = s * x * y, s * x * z, s * y * z
+    wx, wy, wz = s * w * x, s * w * y, s * w * z
+    return (
+        one - yy - zz, xy - wz, xz + wy,
+        xy + wz, one - xx - zz, yz - wx,
+        xz - wy, yz + wx, one - xx - yy,
+    )  # fmt: skip
+
+
 @inline
 def half_angle(q):
     """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from . import _elements as E
+from ._mat33 import cofactor33, det33, load33, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, is_weak, shape_error
@@ -37,60 +38,9 @@ _FROM_DEG = math.pi / 180.0
 
 
 @element
-def load33(a, i):
-    return (
-        a[i, 0, 0], a[i, 0, 1], a[i, 0, 2],
-        a[i, 1, 0], a[i, 1, 1], a[i, 1, 2],
-        a[i, 2, 0], a[i, 2, 1], a[i, 2, 2],
-    )  # fmt: skip
-
-
-@element
-def store33(out, i, m):
-    out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = m[0], m[1], m[2]
-    out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = m[3], m[4], m[5]
-    out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = m[6], m[7], m[8]
-
-
-@element
 def store44(out, i, m):
     for k in range(16):
         out[i, k // 4, k % 4] = m[k]
-
-
-@element
-def qmatrix(q):
-    """Row-major 3×3 rotation matrix of q/|q| (9-tuple); zero q gives nan."""
-    w, x, y, z = q
-    s = like(w, 2.0) / E.qdot(q, q)
-    one = like(w, 1.0)
-    xx, yy, zz = s * x * x, s * y * y, s * z * z
-    xy, xz, yz = s * x * y, s * x * z, s * y * z
-    wx, wy, wz = s * w * x, s * w * y, s * w * z
-    return (
-        one - yy - zz, xy - wz, xz + wy,
-        xy + wz, one - xx - zz, yz - wx,
-        xz - wy, yz + wx, one - xx - yy,
-    )  # fmt: skip
-
-
-@element
-def det33(a):
-    return (
-        a[0] * (a[4] * a[8] - a[5] * a[7])
-        - a[1] * (a[3] * a[8] - a[5] * a[6])
-        + a[2] * (a[3] * a[7] - a[4] * a[6])
-    )
-
-
-@element
-def cofactor33(a):
-    """Cofactor matrix: equals det(a)·a⁻ᵀ."""
-    return (
-        a[4] * a[8] - a[5] * a[7], a[5] * a[6] - a[3] * a[8], a[3] * a[7] - a[4] * a[6],
-        a[2] * a[7] - a[1] * a[8], a[0] * a[8] - a[2] * a[6], a[1] * a[6] - a[0] * a[7],
-        a[1] * a[5] - a[2] * a[4], a[2] * a[3] - a[0] * a[5], a[0] * a[4] - a[1] * a[3],
-    )  # fmt: skip
 
 
 @element
@@ -263,7 +213,7 @@ def right_matrix(q):
 @rowloop
 def _as_matrix(q, out):
     for i in prange(q.shape[0]):
-        store33(out, i, qmatrix(E.load4(q, i)))
+        store33(out, i, E.qmatrix(E.load4(q, i)))
 
 
 @rowloop

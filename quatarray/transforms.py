@@ -29,59 +29,14 @@ import numpy as np
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, is_weak, result_dtype
-from .conversions import cofactor33, det33, from_matrix, load33, qmatrix, store33
+from ._mat33 import cofactor33, det33, lerp9, load33, matmul, matvec, scale9, store33, transpose
+from .conversions import from_matrix
 
 _F64 = np.dtype(np.float64)
 _F32 = np.dtype(np.float32)
 
 # --------------------------------------------------------------------------
-# per-element helpers; 3×3 matrices are row-major 9-tuples as in
-# quatarray.conversions (load33, store33, qmatrix, det33, cofactor33)
-
-
-@element
-def _matvec(m, r):
-    """M r."""
-    return (
-        m[0] * r[0] + m[1] * r[1] + m[2] * r[2],
-        m[3] * r[0] + m[4] * r[1] + m[5] * r[2],
-        m[6] * r[0] + m[7] * r[1] + m[8] * r[2],
-    )
-
-
-@element
-def _matmul(a, b):
-    """A B."""
-    return (
-        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
-        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
-        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
-        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
-        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
-        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
-        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
-        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
-        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
-    )
-
-
-@element
-def _transpose(a):
-    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
-
-
-@element
-def _scale9(a, s):
-    return (a[0] * s, a[1] * s, a[2] * s, a[3] * s, a[4] * s, a[5] * s, a[6] * s, a[7] * s, a[8] * s)
-
-
-@element
-def _lerp9(a, b, u, t):
-    return (
-        a[0] * u + b[0] * t, a[1] * u + b[1] * t, a[2] * u + b[2] * t,
-        a[3] * u + b[3] * t, a[4] * u + b[4] * t, a[5] * u + b[5] * t,
-        a[6] * u + b[6] * t, a[7] * u + b[7] * t, a[8] * u + b[8] * t,
-    )  # fmt: skip
+# per-element helpers; 3×3 matrices are row-major 9-tuples (quatarray._mat33)
 
 
 @element
@@ -102,7 +57,7 @@ def _mat_inverse(m):
     bound), a scale-free measure of how close M is to singular.
     """
     det = det33(m)
-    inv = _scale9(_transpose(cofactor33(m)), like(det, 1.0) / det)
+    inv = scale9(transpose(cofactor33(m)), like(det, 1.0) / det)
     den = E.vnorm((m[0], m[1], m[2])) * E.vnorm((m[3], m[4], m[5])) * E.vnorm((m[6], m[7], m[8]))
     ratio = abs(det) / den
     if den == like(den, 0.0):  # a zero row: singular (not 0/0 = nan)
@@ -124,7 +79,7 @@ def _apply_vqs(v, q, s, p, out):
 @rowloop
 def _apply_vqm(v, q, m, p, out):
     for i in prange(p.shape[0]):
-        r = _matvec(load33(m, i), E.load3(p, i))
+        r = matvec(load33(m, i), E.load3(p, i))
         E.store3(out, i, _add3(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
 
 
@@ -170,10 +125,10 @@ def _compose_vqm(va, qa, ma, vb, qb, mb, vo, qo, mo):
         qa_ = E.load4(qa, i)
         qb_ = E.load4(qb, i)
         ma_ = load33(ma, i)
-        rb = qmatrix(qb_)
-        v = _add3(E.qrotate(qa_, _matvec(ma_, E.load3(vb, i))), E.load3(va, i))
+        rb = E.qmatrix(qb_)
+        v = _add3(E.qrotate(qa_, matvec(ma_, E.load3(vb, i))), E.load3(va, i))
         q = E.qmul(qa_, qb_)
-        m = _matmul(_transpose(rb), _matmul(ma_, _matmul(rb, load33(mb, i))))  # R_bᵀ M_a R_b M_b
+        m = matmul(transpose(rb), matmul(ma_, matmul(rb, load33(mb, i))))  # R_bᵀ M_a R_b M_b
         E.store3(vo, i, v)
         E.store4(qo, i, q)
         store33(mo, i, m)
@@ -194,14 +149,14 @@ def _inverse_vqs(v, q, s, vo, qo, so):
 def _inverse_vqm(v, q, m, vo, qo, mo, ratio):
     for i in prange(v.shape[0]):
         q_ = E.load4(q, i)
-        r = qmatrix(q_)
-        rt = _transpose(r)
+        r = E.qmatrix(q_)
+        rt = transpose(r)
         inv, c = _mat_inverse(load33(m, i))
         # [v, q, M]⁻¹ = [−M⁻¹ Rᵀ v, q⁻¹, R M⁻¹ Rᵀ]
-        vi = _matvec(inv, _matvec(rt, E.load3(v, i)))
+        vi = matvec(inv, matvec(rt, E.load3(v, i)))
         E.store3(vo, i, _scale3(vi, like(c, -1.0)))
         E.store4(qo, i, E.qinverse(q_))
-        store33(mo, i, _matmul(r, _matmul(inv, rt)))
+        store33(mo, i, matmul(r, matmul(inv, rt)))
         ratio[i] = c
 
 
@@ -217,13 +172,13 @@ def _store_homogeneous(out, i, a, v):
 @rowloop
 def _matrix_vqs(v, q, s, out):
     for i in prange(v.shape[0]):
-        _store_homogeneous(out, i, _scale9(qmatrix(E.load4(q, i)), s[i]), E.load3(v, i))
+        _store_homogeneous(out, i, scale9(E.qmatrix(E.load4(q, i)), s[i]), E.load3(v, i))
 
 
 @rowloop
 def _matrix_vqm(v, q, m, out):
     for i in prange(v.shape[0]):
-        _store_homogeneous(out, i, _matmul(qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
+        _store_homogeneous(out, i, matmul(E.qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
 
 
 @rowloop
@@ -242,7 +197,7 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
         t_ = t[i]
         u = like(t_, 1.0) - t_
         E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
-        store33(mo, i, _lerp9(load33(ma, i), load33(mb, i), u, t_))
+        store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
 
 
 # --------------------------------------------------------------------------
