@@ -75,11 +75,17 @@ def data_for(lib, n):
     return arrays(n, np.float32 if lib.endswith("f32") else np.float64)
 
 
-def run(benchmark, fn, n):
-    """Time ``fn``: auto-calibrated for small n, fixed rounds of one call for large n."""
+def run(benchmark, fn, n, slow=False):
+    """Time ``fn``: auto-calibrated for small n, fixed rounds of one call for large n.
+
+    ``slow=True`` is for competitors that take seconds at large n (scipy's
+    from_euler, its SVD per matrix): 3 rounds and no warm-up round there.
+    """
     benchmark.extra_info["items"] = n
     if n <= 10_000:
         return benchmark(fn)
+    if slow:
+        return benchmark.pedantic(fn, rounds=3, iterations=1, warmup_rounds=0)
     rounds = 15 if n <= 2_000_000 else 5
     return benchmark.pedantic(fn, rounds=rounds, iterations=1, warmup_rounds=1)
 

@@ -68,14 +68,6 @@ def _unsupported(lib):
     pytest.skip(f"{lib} has no equivalent")
 
 
-def _slow(benchmark, fn, n):
-    """Few rounds for very slow competitors at large N."""
-    benchmark.extra_info["items"] = n
-    if n <= 10_000:
-        return benchmark(fn)
-    return benchmark.pedantic(fn, rounds=3, iterations=1, warmup_rounds=0)
-
-
 # --------------------------------------------------------------------------
 # rotation matrices
 
@@ -147,7 +139,7 @@ def test_from_matrix_non_orthogonal(benchmark, lib, n):
     if lib.startswith("quatarray"):
         run(benchmark, lambda: qa.from_matrix(m), n)
     else:
-        _slow(benchmark, lambda: Rotation.from_matrix(m), n)
+        run(benchmark, lambda: Rotation.from_matrix(m), n, slow=True)
 
 
 # --------------------------------------------------------------------------

@@ -38,14 +38,6 @@ def _data(lib, n, seq):
     return arrays(n, dtype)["q"], _ANGLES[key].astype(dtype)
 
 
-def _slow(benchmark, fn, n):
-    """Few rounds for a slow competitor at large N (scipy's from_euler takes seconds)."""
-    benchmark.extra_info["items"] = n
-    if n <= 10_000:
-        return benchmark(fn)
-    return benchmark.pedantic(fn, rounds=3, iterations=1, warmup_rounds=1)
-
-
 def _as_euler(lib, seq, q, a):
     if lib.startswith("quatarray"):
         return lambda: qa.as_euler(q, seq)
@@ -80,7 +72,4 @@ def test_euler(benchmark, op, lib, seq, n):
     name = op.__name__.strip("_")
     benchmark.group = f"{name} {seq} N={n}"
     fn = op(lib, seq, *_data(lib, n, seq))
-    if lib == "scipy" and name == "from_euler":
-        _slow(benchmark, fn, n)
-    else:
-        run(benchmark, fn, n)
+    run(benchmark, fn, n, slow=lib == "scipy" and name == "from_euler")
