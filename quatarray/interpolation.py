@@ -20,7 +20,10 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, like, prange, rowloop
+from numba import types
+from numba.extending import overload
+
+from ._jit import CACHE, flat_load, flat_store, inline, kernel, like, prange, rowloop
 from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, shape_error
 
@@ -29,7 +32,7 @@ BLOCK = 2048  # samples per block of the segment search
 # rows per block of a row loop: prange runs over blocks and the plain inner
 # loop is what LLVM vectorises (a prange loop body itself is not vectorised)
 ROWS = 1024
-NSEG = 25  # floats per row of a spline's segment table
+NSEG = 31  # floats per row of a spline's segment table: 4 quaternions, 3 arcs
 
 # --------------------------------------------------------------------------
 # element functions (inlined so the row loops vectorise)
@@ -137,25 +140,64 @@ def ld4(a, i):
     return (a[i, 0], a[i, 1], a[i, 2], a[i, 3])
 
 
-@inline
+# Flat access to the 1-D C-contiguous arrays of the row loops (quaternions as
+# (4n,)). Compiled, they read and write the buffer directly (no negative-index
+# wraparound), so LLVM can bound the addresses and vectorise the loops; without
+# the JIT the plain-Python bodies run.
+
+
+def ld1(a, i):
+    return a[i]
+
+
 def ld4flat(a, i):
-    # loads through a flat index: LLVM turns the stride-4 group into shuffles,
-    # where a 2-D index (runtime strides) becomes slow gathers
-    j = 4 * i
-    z = like(a, 0.0)
-    # "+ 0" keeps LLVM from folding a select of two loaded values into a load
-    # through a selected pointer, which the vectoriser cannot bound
-    return (a[j] + z, a[j + 1] + z, a[j + 2] + z, a[j + 3] + z)
+    return (a[4 * i], a[4 * i + 1], a[4 * i + 2], a[4 * i + 3])
 
 
-@inline
 def st4flat(o, i, q):
-    # a store through a flat index: LLVM vectorises it, a 2-D store it does not
-    j = 4 * i
-    o[j] = q[0]
-    o[j + 1] = q[1]
-    o[j + 2] = q[2]
-    o[j + 3] = q[3]
+    o[4 * i], o[4 * i + 1], o[4 * i + 2], o[4 * i + 3] = q
+
+
+def _flat_ok(a):
+    return isinstance(a, types.Array) and a.ndim == 1 and a.layout == "C"
+
+
+@overload(ld1, inline="always", jit_options={"cache": CACHE})
+def _ld1(a, i):
+    if _flat_ok(a):
+        return lambda a, i: flat_load(a, i)
+    return ld1
+
+
+@overload(ld4flat, inline="always", jit_options={"cache": CACHE})
+def _ld4flat(a, i):
+    if _flat_ok(a):
+        # "+ 0" keeps LLVM from folding a select of two loaded values into a
+        # load through a selected pointer, which the vectoriser cannot bound
+        ftype = np.dtype(str(a.dtype)).type  # not like(a, ·): a call with an array stops the vectoriser
+
+        def impl(a, i):
+            z = ftype(0.0)
+            j = 4 * i
+            return (flat_load(a, j) + z, flat_load(a, j + 1) + z, flat_load(a, j + 2) + z, flat_load(a, j + 3) + z)
+
+        return impl
+    return ld4flat
+
+
+@overload(st4flat, inline="always", jit_options={"cache": CACHE})
+def _st4flat(o, i, q):
+    if _flat_ok(o):
+
+        def impl(o, i, q):
+            j = 4 * i
+            flat_store(o, j, q[0])
+            flat_store(o, j + 1, q[1])
+            flat_store(o, j + 2, q[2])
+            flat_store(o, j + 3, q[3])
+
+        return impl
+    return st4flat
 
 
 # --------------------------------------------------------------------------
@@ -169,7 +211,8 @@ def _slerp(p, q, t, shortest, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            st4flat(out, i, slerp4(ld4flat(p, i), ld4flat(q, i), t[i], shortest))
+            ti = ld1(t, i)
+            st4flat(out, i, slerp4(ld4flat(p, i), ld4flat(q, i), ti, shortest))
 
 
 @rowloop(rows=2)
@@ -179,15 +222,16 @@ def _nlerp(p, q, t, shortest, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
+            ti = ld1(t, i)
             pi = ld4flat(p, i)
             qi = ld4flat(q, i)
             d = pi[0] * qi[0] + pi[1] * qi[1] + pi[2] * qi[2] + pi[3] * qi[3]
-            s = like(t, 1.0) - t[i]
+            s = like(ti, 1.0) - ti
             # −t when q is flipped into p's hemisphere; 0 or 2 from the boolean (no select)
-            ts = t[i] - like(t, 2.0) * (d * shortest < like(t, 0.0)) * t[i]
+            ts = ti - like(ti, 2.0) * (d * shortest < like(ti, 0.0)) * ti
             r = (s * pi[0] + ts * qi[0], s * pi[1] + ts * qi[1], s * pi[2] + ts * qi[2], s * pi[3] + ts * qi[3])
-            n = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
-            st4flat(out, i, (r[0] / n, r[1] / n, r[2] / n, r[3] / n))
+            nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+            st4flat(out, i, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
 
 
 @rowloop(rows=2)
@@ -197,11 +241,12 @@ def _lerp(p, q, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
+            ti = ld1(t, i)
             pi = ld4flat(p, i)
             qi = ld4flat(q, i)
-            s = like(t, 1.0) - t[i]
-            st4flat(out, i, (s * pi[0] + t[i] * qi[0], s * pi[1] + t[i] * qi[1],
-                             s * pi[2] + t[i] * qi[2], s * pi[3] + t[i] * qi[3]))
+            s = like(ti, 1.0) - ti
+            st4flat(out, i, (s * pi[0] + ti * qi[0], s * pi[1] + ti * qi[1],
+                             s * pi[2] + ti * qi[2], s * pi[3] + ti * qi[3]))
 
 
 @inline
@@ -246,7 +291,7 @@ def _bezier(q0, a, b, q1, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            st4flat(out, i, bezier4(ld4flat(q0, i), ld4flat(a, i), ld4flat(b, i), ld4flat(q1, i), t[i]))
+            st4flat(out, i, bezier4(ld4flat(q0, i), ld4flat(a, i), ld4flat(b, i), ld4flat(q1, i), ld1(t, i)))
 
 
 @rowloop(rows=4)
@@ -256,36 +301,7 @@ def _squad(q0, s0, s1, q1, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            st4flat(out, i, squad4(ld4flat(q0, i), ld4flat(s0, i), ld4flat(s1, i), ld4flat(q1, i), t[i]))
-
-
-@kernel
-def _controls(q, f_out, f_in, a, b):
-    """Shoemake's control points with the one-third step and tangent scaling.
-
-    Interior n: â = bisect(double(q[n−1], q[n]), q[n+1]); a = slerp(q[n], â, 1/3);
-    b = double(a, q[n]); then a ← slerp(q[n], a, f_out[n]), b ← slerp(q[n], b, f_in[n]).
-    Ends: a[0] = slerp(q[0], q[1], 1/3), b[K−1] = slerp(q[K−1], q[K−2], 1/3) and
-    the other control of an end key is its reflection (Double) through the key.
-    """
-    k = q.shape[0]
-    third = like(f_out, 1.0) / like(f_out, 3.0)
-    for n in range(k):
-        qn = ld4(q, n)
-        if n == 0:
-            an = slerp4(qn, ld4(q, 1), third)
-            bn = double4(an, qn)
-        elif n == k - 1:
-            bn = slerp4(qn, ld4(q, n - 1), third)
-            an = double4(bn, qn)
-        else:
-            ah = bisect4(double4(ld4(q, n - 1), qn), ld4(q, n + 1))
-            an = slerp4(qn, ah, third)
-            bn = double4(an, qn)
-            an = slerp4(qn, an, f_out[n])
-            bn = slerp4(qn, bn, f_in[n])
-        E.store4(a, n, an)
-        E.store4(b, n, bn)
+            st4flat(out, i, squad4(ld4flat(q0, i), ld4flat(s0, i), ld4flat(s1, i), ld4flat(q1, i), ld1(t, i)))
 
 
 @kernel
@@ -307,128 +323,235 @@ def _unflip(q, out):
 
 @kernel
 def _arcs(p, q, seg, col):
-    """seg[n, col:col+3] = arc(p[n], q[n])."""
+    """seg[n, col:col+5] = (θ, v) of the great arc p[n] → q[n]: slerp = p cos tθ + v sin tθ.
+
+    v is the unit tangent at p towards q, (q − p cos θ)/sin θ, with
+    p cos θ = p − p(1 − cos θ) and 1 − cos θ = 2a²/(a² + b²), sin θ =
+    2ab/(a² + b²) from the chords a = |p − q|, b = |p + q| (no cancellation
+    for close p, q). Identical ends: v = 0 (the constant p); antipodal ends
+    (θ = π): v = p ⊗ i, the convention of :func:`arc_weights`.
+    """
+    zero = like(seg, 0.0)
+    two = like(seg, 2.0)
     for n in range(p.shape[0]):
-        th, st, anti, sgn = arc(ld4(p, n), ld4(q, n), like(seg, 0.0))
+        pn = ld4(p, n)
+        qn = ld4(q, n)
+        th, st, anti, sgn = arc(pn, qn, zero)
+        a2 = (pn[0] - qn[0]) ** 2 + (pn[1] - qn[1]) ** 2 + (pn[2] - qn[2]) ** 2 + (pn[3] - qn[3]) ** 2
+        b2 = (pn[0] + qn[0]) ** 2 + (pn[1] + qn[1]) ** 2 + (pn[2] + qn[2]) ** 2 + (pn[3] + qn[3]) ** 2
+        f = two * a2 / (a2 + b2)  # 1 − cos θ
+        v = ((qn[0] - pn[0] + f * pn[0]) / st, (qn[1] - pn[1] + f * pn[1]) / st,
+             (qn[2] - pn[2] + f * pn[2]) / st, (qn[3] - pn[3] + f * pn[3]) / st)
+        if th == zero:
+            v = (zero, zero, zero, zero)
+        if anti > zero:
+            v = (-pn[1], pn[0], pn[3], -pn[2])
         seg[n, col] = th
-        seg[n, col + 1] = st
-        seg[n, col + 2] = anti
+        seg[n, col + 1] = v[0]
+        seg[n, col + 2] = v[1]
+        seg[n, col + 3] = v[2]
+        seg[n, col + 4] = v[3]
 
 
-@rowloop(rows=1)
-def _locate(times, new_t, idx, u):
-    """Segment n of every sample (times[n] ≤ t ≤ times[n+1], n ≤ K−2) and u ∈ [0, 1].
+@inline
+def arc_slerp(p, q, c, t):
+    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`_arcs`."""
+    th, v0, v1, v2, v3 = c
+    s, co = sincos(t * th)
+    r = (co * p[0] + s * v0, co * p[1] + s * v1, co * p[2] + s * v2, co * p[3] + s * v3)
+    if t == like(t, 1.0):  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
+        r = q
+    return r
 
-    Binary search, started by an exponential search from the previous sample's
-    segment, so sorted samples cost O(1) each and any order O(log K).
+
+@inline
+def slerp4_one(p, q, t):
+    """Plain great-arc slerp with one sincos: w1 = sin tθ/sin θ, w0 = cos tθ − cos θ·w1.
+
+    For the inner de Casteljau levels of the spline (short arcs). Near θ = π
+    the two terms of w0 cancel; the public :func:`slerp` keeps the two-sine form.
+    """
+    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
+    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
+    m2 = dw * dw + dx * dx + dy * dy + dz * dz
+    p2 = sw * sw + sx * sx + sy * sy + sz * sz
+    a = np.sqrt(m2)
+    b = np.sqrt(p2)
+    one = like(t, 1.0)
+    zero = like(t, 0.0)
+    th = like(t, 2.0) * half_arc(a, b)
+    # sin θ = 2ab/(a² + b²), cos θ = (b² − a²)/(a² + b²)
+    r = one / (like(t, 2.0) * a * b)
+    s, co = sincos(t * th)
+    w1 = s * (m2 + p2) * r
+    w0 = co - s * (p2 - m2) * r
+    w2 = zero
+    if a == zero:  # identical: the linear blend
+        w0, w1 = one - t, t
+    if b == zero:  # p = −q: the arc through p ⊗ i
+        w0, w1, w2 = co, zero, s
+    # t = 0 is exact already (sincos(0) = (0, 1)); t = 1 is made exact
+    if t == one:
+        w0, w1, w2 = zero, one, zero
+    return combine(p, q, (w0, w1, w2))
+
+
+@inline
+def next_run(times, new_t, j, hi, n):
+    """(segment, end) of the run of samples j, j+1, ..., end−1 (< hi) in one segment.
+
+    Segment n of a time t: times[n] ≤ t < times[n+1], or n = K−2 up to and
+    including times[K−1]. Binary search, started by an exponential search
+    from the previous segment `n`, so sorted samples cost O(1) each and any
+    order O(log K); the run then extends while the samples stay in the segment.
     """
     k = times.shape[0]
-    m = new_t.shape[0]
-    nblk = (m + BLOCK - 1) // BLOCK
-    for blk in prange(nblk):
-        n = 0
-        for j in range(blk * BLOCK, min(m, (blk + 1) * BLOCK)):
-            t = new_t[j]
-            lo = n if times[n] <= t else 0  # invariant: times[lo] <= t
-            step = 1
-            hi = lo + 1
-            while hi < k - 1 and times[hi] <= t:
-                lo = hi
-                step *= 2
-                hi = lo + step
-            if hi > k - 1:
-                hi = k - 1
-            while hi - lo > 1:  # invariant: times[lo] <= t, hi == k-1 or times[hi] > t
-                mid = (lo + hi) >> 1
-                if times[mid] <= t:
-                    lo = mid
-                else:
-                    hi = mid
-            n = lo
-            idx[j] = n
-            u[j] = (t - times[n]) / (times[n + 1] - times[n])
+    t = new_t[j]
+    lo = n if times[n] <= t else 0  # invariant: times[lo] <= t
+    step = 1
+    hi_s = lo + 1
+    while hi_s < k - 1 and times[hi_s] <= t:
+        lo = hi_s
+        step *= 2
+        hi_s = lo + step
+    if hi_s > k - 1:
+        hi_s = k - 1
+    while hi_s - lo > 1:  # invariant: times[lo] <= t, hi_s == k-1 or times[hi_s] > t
+        mid = (lo + hi_s) >> 1
+        if times[mid] <= t:
+            lo = mid
+        else:
+            hi_s = mid
+    t0 = times[lo]
+    t1 = times[lo + 1]
+    last = lo == k - 2
+    e = j + 1
+    while e < hi and new_t[e] >= t0 and (new_t[e] < t1 or last):
+        e += 1
+    return lo, e
 
 
 @inline
 def seg_arc(seg, n, c):
-    return seg[n + c], seg[n + c + 1], seg[n + c + 2]
+    return seg[n + c], seg[n + c + 1], seg[n + c + 2], seg[n + c + 3], seg[n + c + 4]
+
+
+@inline
+def seg_q(seg, n, c):
+    return seg[n + c], seg[n + c + 1], seg[n + c + 2], seg[n + c + 3]
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
-# 12-15 q_{n+1}, then (θ, sin θ, antipodal) of fixed arcs from 16 on.
+# 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`_arcs`) at 16, 21, 26.
+#
+# The evaluation loops go segment by segment: for each run of samples in one
+# segment (the whole run when new times are sorted, single samples when not)
+# the segment's values are read once into scalars and the inner loop over the
+# run's samples -- loads of u, polynomial trig, flat stores -- runs as SIMD.
 
 
 @rowloop(rows=1)
-def _eval_slerp(seg, idx, u, out):
-    m = idx.shape[0]
-    for blk in prange((m + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)
-        for k in range(min(m - lo, ROWS)):
-            j = lo + k
-            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
-            p = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
-            q = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
-            th, st, anti = seg_arc(seg, n, 16)
-            st4flat(out, j, combine(p, q, arc_weights(th, st, anti, u[j])))
+def _eval_slerp(times, new_t, seg, out):
+    m = new_t.shape[0]
+    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        j = blk * BLOCK
+        hi = min(m, j + BLOCK)
+        sg = 0
+        while j < hi:
+            sg, e = next_run(times, new_t, j, hi, sg)
+            t0 = times[sg]
+            h = times[sg + 1] - t0
+            n = NSEG * sg
+            p = seg_q(seg, n, 0)
+            q = seg_q(seg, n, 12)
+            c = seg_arc(seg, n, 16)
+            for i in range(j, e):
+                st4flat(out, i, arc_slerp(p, q, c, like(x0, (ld1(new_t, i) - t0) / h)))
+            j = e
 
 
 @rowloop(rows=1)
-def _eval_nlerp(seg, idx, u, out):
-    m = idx.shape[0]
-    for blk in prange((m + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)
-        for k in range(min(m - lo, ROWS)):
-            j = lo + k
-            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
-            t = u[j]
-            s = like(t, 1.0) - t
-            r = (s * seg[n + 0] + t * seg[n + 12], s * seg[n + 1] + t * seg[n + 13],
-                 s * seg[n + 2] + t * seg[n + 14], s * seg[n + 3] + t * seg[n + 15])
-            nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
-            st4flat(out, j, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
+def _eval_nlerp(times, new_t, seg, out):
+    m = new_t.shape[0]
+    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        j = blk * BLOCK
+        hi = min(m, j + BLOCK)
+        sg = 0
+        while j < hi:
+            sg, e = next_run(times, new_t, j, hi, sg)
+            t0 = times[sg]
+            h = times[sg + 1] - t0
+            n = NSEG * sg
+            p = seg_q(seg, n, 0)
+            q = seg_q(seg, n, 12)
+            for i in range(j, e):
+                t = like(x0, (ld1(new_t, i) - t0) / h)
+                s = like(t, 1.0) - t
+                r = (s * p[0] + t * q[0], s * p[1] + t * q[1], s * p[2] + t * q[2], s * p[3] + t * q[3])
+                nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+                st4flat(out, i, (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr))
+            j = e
 
 
 @rowloop(rows=1)
-def _eval_bezier(seg, idx, u, out):
-    m = idx.shape[0]
-    for blk in prange((m + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)
-        for k in range(min(m - lo, ROWS)):
-            j = lo + k
-            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
-            t = u[j]
-            q0 = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
-            a = (seg[n + 4], seg[n + 5], seg[n + 6], seg[n + 7])
-            b = (seg[n + 8], seg[n + 9], seg[n + 10], seg[n + 11])
-            q1 = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
-            # level 1 on the three fixed control arcs: only the weights per sample
-            th, st, anti = seg_arc(seg, n, 16)
-            p01 = combine(q0, a, arc_weights(th, st, anti, t))
-            th, st, anti = seg_arc(seg, n, 19)
-            p12 = combine(a, b, arc_weights(th, st, anti, t))
-            th, st, anti = seg_arc(seg, n, 22)
-            p23 = combine(b, q1, arc_weights(th, st, anti, t))
-            st4flat(out, j, casteljau_tail(p01, p12, p23, t))
+def _eval_bezier(times, new_t, seg, out):
+    m = new_t.shape[0]
+    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        j = blk * BLOCK
+        hi = min(m, j + BLOCK)
+        sg = 0
+        while j < hi:
+            sg, e = next_run(times, new_t, j, hi, sg)
+            t0 = times[sg]
+            h = times[sg + 1] - t0
+            n = NSEG * sg
+            q0 = seg_q(seg, n, 0)
+            a = seg_q(seg, n, 4)
+            b = seg_q(seg, n, 8)
+            q1 = seg_q(seg, n, 12)
+            # level 1 runs on the three fixed control arcs: only the weights per sample
+            c0 = seg_arc(seg, n, 16)
+            c1 = seg_arc(seg, n, 21)
+            c2 = seg_arc(seg, n, 26)
+            for i in range(j, e):
+                t = like(x0, (ld1(new_t, i) - t0) / h)
+                p01 = arc_slerp(q0, a, c0, t)
+                p12 = arc_slerp(a, b, c1, t)
+                p23 = arc_slerp(b, q1, c2, t)
+                p012 = slerp4_one(p01, p12, t)
+                p123 = slerp4_one(p12, p23, t)
+                st4flat(out, i, slerp4_one(p012, p123, t))
+            j = e
 
 
 @rowloop(rows=1)
-def _eval_squad(seg, idx, u, out):
-    m = idx.shape[0]
-    for blk in prange((m + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)
-        for k in range(min(m - lo, ROWS)):
-            j = lo + k
-            n = NSEG * max(idx[j], 0)  # row start in the flat table; >= 0 for the vectoriser
-            t = u[j]
-            q0 = (seg[n + 0], seg[n + 1], seg[n + 2], seg[n + 3])
-            s0 = (seg[n + 4], seg[n + 5], seg[n + 6], seg[n + 7])
-            s1 = (seg[n + 8], seg[n + 9], seg[n + 10], seg[n + 11])
-            q1 = (seg[n + 12], seg[n + 13], seg[n + 14], seg[n + 15])
-            th, st, anti = seg_arc(seg, n, 16)
-            pq = combine(q0, q1, arc_weights(th, st, anti, t))
-            th, st, anti = seg_arc(seg, n, 19)
-            ps = combine(s0, s1, arc_weights(th, st, anti, t))
-            st4flat(out, j, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
+def _eval_squad(times, new_t, seg, out):
+    m = new_t.shape[0]
+    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
+    for blk in prange((m + BLOCK - 1) // BLOCK):
+        j = blk * BLOCK
+        hi = min(m, j + BLOCK)
+        sg = 0
+        while j < hi:
+            sg, e = next_run(times, new_t, j, hi, sg)
+            t0 = times[sg]
+            h = times[sg + 1] - t0
+            n = NSEG * sg
+            q0 = seg_q(seg, n, 0)
+            s0 = seg_q(seg, n, 4)
+            s1 = seg_q(seg, n, 8)
+            q1 = seg_q(seg, n, 12)
+            c0 = seg_arc(seg, n, 16)
+            c1 = seg_arc(seg, n, 21)
+            for i in range(j, e):
+                t = like(x0, (ld1(new_t, i) - t0) / h)
+                pq = arc_slerp(q0, q1, c0, t)
+                ps = arc_slerp(s0, s1, c1, t)
+                st4flat(out, i, slerp4_one(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
+            j = e
 
 
 # ---- angular velocity ----
@@ -661,9 +784,20 @@ def bezier_controls(keys, times=None):
     else:
         t = _times(times, k)
         f_out, f_in = _tangent_scales(np.diff(t))
+    # batched over the keys (the vectorised kernels of the public functions)
     a = np.empty_like(q)
     b = np.empty_like(q)
-    _controls(q, f_out.astype(q.dtype), f_in.astype(q.dtype), a, b)
+    third = 1 / 3
+    a[0] = slerp(q[0], q[1], third, shortest=False)
+    b[0] = double(a[0], q[0])
+    b[-1] = slerp(q[-1], q[-2], third, shortest=False)
+    a[-1] = double(b[-1], q[-1])
+    if k > 2:
+        qn = q[1:-1]
+        an = slerp(qn, bisect(double(q[:-2], qn), q[2:]), third, shortest=False)
+        bn = double(an, qn)
+        slerp(qn, an, f_out[1:-1].astype(q.dtype), shortest=False, out=a[1:-1])
+        slerp(qn, bn, f_in[1:-1].astype(q.dtype), shortest=False, out=b[1:-1])
     return a, b
 
 
@@ -784,6 +918,15 @@ def _times(times, k=None, name="times"):
     return t
 
 
+@kernel
+def _n_outside(lo, hi, x):
+    """How many x are not within [lo, hi] (nan included)."""
+    c = 0
+    for i in range(x.shape[0]):
+        c += not (x[i] >= lo and x[i] <= hi)
+    return c
+
+
 _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
 
 
@@ -846,11 +989,10 @@ def spline(times, keys, new_times, method="bezier"):
         nt = (nt_raw.astype(np.int64) - np.int64(origin)).astype(np.float64)
     else:
         t = t_raw.astype(np.float64)
-        nt = nt_raw.astype(np.float64)
-    flat_nt = nt.reshape(-1)
-    bad = ~((flat_nt >= t[0]) & (flat_nt <= t[-1]))
-    if bad.any():
-        i = int(np.argmax(bad))
+        nt = np.asarray(nt_raw, np.float64)
+    flat_nt = np.ascontiguousarray(nt.reshape(-1))
+    if _n_outside(t[0], t[-1], flat_nt):
+        i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))
         raise ValueError(
             f"Expected `new_times` within [{t_raw[0].item()}, {t_raw[-1].item()}] (the key times), "
             f"got {nt_raw.reshape(-1)[i].item()} at flat index {i}."
@@ -867,24 +1009,21 @@ def spline(times, keys, new_times, method="bezier"):
         a, b = bezier_controls(q, t)
         seg[:, 4:8] = a[:-1]
         seg[:, 8:12] = b[1:]
-        for col, (p0, p1) in zip((16, 19, 22), ((0, 4), (4, 8), (8, 12))):
+        for col, (p0, p1) in zip((16, 21, 26), ((0, 4), (4, 8), (8, 12))):
             _arcs(np.ascontiguousarray(seg[:, p0:p0 + 4]), np.ascontiguousarray(seg[:, p1:p1 + 4]), seg, col)
     elif method == "squad":
         s = squad_controls(q)
         seg[:, 4:8] = s[:-1]
         seg[:, 8:12] = s[1:]
         _arcs(q[:-1], q[1:], seg, 16)
-        _arcs(s[:-1], s[1:], seg, 19)
+        _arcs(s[:-1], s[1:], seg, 21)
     else:
         _arcs(q[:-1], q[1:], seg, 16)
 
     m = flat_nt.shape[0]
-    idx = np.empty(m, np.int64)
-    u = np.empty(m, dtype)
     out = np.empty((m, 4), dtype)
     if m:
-        _locate(t, np.ascontiguousarray(flat_nt), idx, u)
-        _SPLINE[method](seg.reshape(-1), idx, u, out.reshape(-1))
+        _SPLINE[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
 
 
