@@ -18,12 +18,10 @@ row loops compile to SIMD code (about 3× faster than with libm calls).
 import math
 
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from . import _elements as E
+from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
-from ._jit import CACHE, element, flat_store, inline, like, prange, rowloop
 from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, is_weak, shape_error
 
@@ -212,40 +210,10 @@ def right_matrix(q):
 # batched loops
 
 
-def _store_matrix(out, i, m):
-    """``out[i] = m`` (a row-major 9-tuple) for an ``(n, 3, 3)`` array."""
-    store33(out, i, m)
-
-
-@overload(_store_matrix, jit_options={"cache": CACHE})
-def _store_matrix_flat(out, i, m):
-    # A C-contiguous output is written as a flat buffer at the literal stride 9
-    # (as _elements.store4 does at stride 4): LLVM then vectorises the row loop.
-    # Into a warm out= it is no faster (memory-bound either way), but a freshly
-    # allocated output, whose pages the system faults in and zeroes during the
-    # loop, was filled about 20 % faster (N = 2·10⁶, serial and parallel).
-    if isinstance(out, types.Array) and out.ndim == 3 and out.layout == "C" and out.aligned:
-
-        def impl(out, i, m):
-            j = 9 * i
-            flat_store(out, j, m[0])
-            flat_store(out, j + 1, m[1])
-            flat_store(out, j + 2, m[2])
-            flat_store(out, j + 3, m[3])
-            flat_store(out, j + 4, m[4])
-            flat_store(out, j + 5, m[5])
-            flat_store(out, j + 6, m[6])
-            flat_store(out, j + 7, m[7])
-            flat_store(out, j + 8, m[8])
-
-        return impl
-    return lambda out, i, m: store33(out, i, m)
-
-
 @rowloop
 def _as_matrix(q, out):
     for i in prange(q.shape[0]):
-        _store_matrix(out, i, E.qmatrix(E.load4(q, i)))
+        store33(out, i, E.qmatrix(E.load4(q, i)))
 
 
 @rowloop
