@@ -23,7 +23,7 @@ from . import _elements as E
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, flat_load, flat_store, inline, kernel, like, prange, rowloop
+from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop
 from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, shape_error
 
@@ -114,25 +114,31 @@ def slerp4(p, q, t, shortest=0.0):
     return combine(p, q, (w0, w1 - sgn * w1, w2))  # exactly ±w1
 
 
-@inline
-def casteljau_tail(p01, p12, p23, t):
-    """The last two de Casteljau levels (three slerps) of a spherical Bézier."""
-    p012 = slerp4(p01, p12, t)
-    p123 = slerp4(p12, p23, t)
-    return slerp4(p012, p123, t)
+@element
+def slerp_call(p, q, t):
+    """:func:`slerp4` (plain great arc) as a called function, compiled once.
+
+    The public Bézier and squad row loops call it six and three times per
+    row; inlining every copy made those kernels take about half a minute to
+    compile (the spline's segment loops are the fast path for resampling).
+    """
+    return slerp4(p, q, t, like(t, 0.0))
 
 
 @inline
 def bezier4(q0, a, b, q1, t):
     """Spherical cubic Bézier by de Casteljau: six slerps."""
-    return casteljau_tail(slerp4(q0, a, t), slerp4(a, b, t), slerp4(b, q1, t), t)
+    p01 = slerp_call(q0, a, t)
+    p12 = slerp_call(a, b, t)
+    p23 = slerp_call(b, q1, t)
+    return slerp_call(slerp_call(p01, p12, t), slerp_call(p12, p23, t), t)
 
 
 @inline
 def squad4(q0, s0, s1, q1, t):
     """Shoemake's squad: slerp(slerp(q0, q1, t), slerp(s0, s1, t), 2t(1 − t))."""
     h = like(t, 2.0) * t * (like(t, 1.0) - t)
-    return slerp4(slerp4(q0, q1, t), slerp4(s0, s1, t), h)
+    return slerp_call(slerp_call(q0, q1, t), slerp_call(s0, s1, t), h)
 
 
 @inline

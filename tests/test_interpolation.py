@@ -74,6 +74,11 @@ def test_lerp_nlerp(rng):
     assert np.allclose(qa.nlerp(p, q, t), want / np.linalg.norm(want, axis=-1, keepdims=True), atol=1e-15)
     raw = (1 - t)[:, None] * p + t[:, None] * q
     assert np.allclose(qa.nlerp(p, q, t, shortest=False), raw / np.linalg.norm(raw, axis=-1, keepdims=True))
+    # more rows than one block of the row loop (1024)
+    p, q, t = qa.random(3000, rng), qa.random(3000, rng), rng.random(3000)
+    raw = (1 - t)[:, None] * p + t[:, None] * q
+    assert np.allclose(qa.nlerp(p, q, t, shortest=False), raw / np.linalg.norm(raw, axis=-1, keepdims=True))
+    assert np.allclose(qa.lerp(p, q, t), raw, atol=1e-15)
 
 
 def test_double_bisect(rng):
