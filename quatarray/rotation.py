@@ -2,13 +2,28 @@
 
 from . import _elements as E
 from ._jit import prange, rowloop
-from ._validate import elementwise
+from ._validate import as_float, elementwise
 
 
 @rowloop
 def _rotate(q, v, out):
     for i in prange(q.shape[0]):
         E.store3(out, i, E.qrotate(E.load4(q, i), E.load3(v, i)))
+
+
+@rowloop
+def _rotate_one(v, q, out):
+    # One rotation for every row: its matrix once, then a 3×3 product per row.
+    if v.shape[0] == 0:
+        return
+    m = E.qmatrix(E.load4(q, 0))
+    for i in prange(v.shape[0]):
+        x, y, z = E.load3(v, i)
+        E.store3(
+            out,
+            i,
+            (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z),
+        )
 
 
 def rotate(q, v, out=None):
@@ -36,4 +51,7 @@ def rotate(q, v, out=None):
     >>> np.round(qa.rotate(q, [0, 1, 1]), 12)
     array([1., 1., 0.])
     """
-    return elementwise(_rotate, [(q, "q", (4,)), (v, "v", (3,))], [(3,)], out)
+    a = as_float(q, "q")
+    if a.shape == (4,):
+        return elementwise(_rotate_one, [(v, "v", (3,)), (a, "q", (4,))], [(3,)], out)
+    return elementwise(_rotate, [(a, "q", (4,)), (v, "v", (3,))], [(3,)], out)

@@ -71,3 +71,17 @@ def test_preserves_length_and_composes(q, v):
     assert np.isclose(np.linalg.norm(r), np.linalg.norm(v), rtol=1e-12, atol=1e-9)
     p = np.array([0.5, -0.5, 0.5, 0.5])
     assert np.allclose(qa.rotate(qa.multiply(p, q), v), qa.rotate(p, r), atol=1e-9)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_one_rotation_many_vectors(rng, dtype):
+    # a single q takes the matrix path; it must agree with scipy and the row-wise path
+    q = qa.random(rng=rng) * 3.0  # non-unit on purpose
+    v = rng.standard_normal((1000, 3))
+    got = qa.rotate(q.astype(dtype), v.astype(dtype))
+    assert got.dtype == dtype and got.shape == (1000, 3)
+    want = Rotation.from_quat(q, scalar_first=True).apply(v)
+    assert np.allclose(got, want, atol=1e-5 if dtype == np.float32 else 1e-14)
+    assert np.allclose(qa.rotate(np.tile(q, (1000, 1)), v), want, atol=1e-14)
+    assert qa.rotate(q, np.empty((0, 3))).shape == (0, 3)
+    assert np.isnan(qa.rotate(np.zeros(4), v[:3])).all()
