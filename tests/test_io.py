@@ -281,6 +281,20 @@ def test_bad_csv(tmp_path, text, msg):
         read_all(io.open_stream(p, name="f.csv"))
 
 
+def test_tum_comment_lines_anywhere(tmp_path):
+    p = write(
+        tmp_path / "traj.txt",
+        "# head\n1 0 0 0 0 0 0 1\n# a note recorded mid-stream\n2 0 0 0 0 0 1 0\n  # indented\n3 0 0 0 1 0 0 0\n",
+    )
+    got, clean = read_all(io.open_stream(p))
+    np.testing.assert_array_equal(got.t, [1, 2, 3])
+    np.testing.assert_allclose(got.data, [[1, 0, 0, 0], [0, 0, 0, 1], [0, 1, 0, 0]])
+    # a comment is not a bad row: the same file with a broken line still names that line
+    bad = write(tmp_path / "b.txt", "1 0 0 0 0 0 0 1\n# note\n2 0 0 0 0 0 1\n")
+    with pytest.raises(DataError, match=r"b\.txt:3: expected 8 numbers, got 7"):
+        read_all(io.open_stream(bad, name="b.txt"))
+
+
 def test_bad_tum_line(tmp_path):
     p = write(tmp_path / "t.txt", "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n")
     with pytest.raises(DataError, match=r"t\.txt:3: expected 8 numbers, got 7"):

@@ -389,7 +389,7 @@ class TextReader(Reader):
                 if lineno <= self.skip:
                     continue
                 line = raw.decode("utf-8", "replace").rstrip("\r\n")
-                if not line:
+                if not line or line.lstrip().startswith("#"):  # pyarrow skips comments too
                     continue
                 yield lineno, line
 
@@ -420,10 +420,15 @@ class TextReader(Reader):
         )
 
         def skip(row):
-            self.skipped += 1
-            return "skip"
+            # `#` comment lines may stand anywhere in TUM-style text files
+            if (row.text or "").lstrip().startswith("#"):
+                return "skip"
+            if self.drop:
+                self.skipped += 1
+                return "skip"
+            return "error"
 
-        po = pcsv.ParseOptions(delimiter=self.delim, invalid_row_handler=skip if self.drop else None)
+        po = pcsv.ParseOptions(delimiter=self.delim, invalid_row_handler=skip)
         co = pcsv.ConvertOptions(column_types=types, include_columns=needed, strings_can_be_null=True)
         return ro, po, co
 
