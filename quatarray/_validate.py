@@ -199,3 +199,24 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
     if o is None:
         out[...] = target.reshape(out.shape)
     return out
+
+
+def scan(kernel, q, axis, fname):
+    """Run a scan ``kernel(q3, out3)`` along a leading axis of a quaternion array.
+
+    `axis` counts the leading (non-quaternion) axes. The kernel sees ``(K, M, 4)``
+    views (the scan runs along the first axis, for each of the M columns) and
+    is not called for K = 0.
+    """
+    a = check_core(as_float(q, "q"), "q", (4,))
+    lead = a.ndim - 1
+    if lead == 0:
+        raise ValueError(f"Expected `q` to have shape (N, ..., 4) for {fname}, got (4,).")
+    if not -lead <= axis < lead:
+        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {a.shape}, got {axis}.")
+    m = np.moveaxis(a, axis % lead, 0)
+    shape = m.shape
+    out = np.empty((shape[0], math.prod(shape[1:-1]), 4), a.dtype)
+    if shape[0]:
+        kernel(m.reshape(out.shape), out)
+    return np.moveaxis(out.reshape(shape), 0, axis % lead)

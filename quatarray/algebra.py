@@ -5,13 +5,12 @@ like numpy; float32 stays float32, float64 stays float64, mixed gives
 float64. Element-wise functions accept ``out=`` (which may be an input).
 """
 
-import math
 
 import numpy as np
 
 from . import _elements as E
 from ._jit import kernel, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise
+from ._validate import as_float, check_core, elementwise, scan
 
 Q = (4,)
 
@@ -294,18 +293,7 @@ def cumprod(q, axis=0):
     >>> np.allclose(qa.cumprod(np.tile(step, (4, 1)))[-1], qa.from_rotvec([0, 0, np.pi]))
     True
     """
-    a = check_core(as_float(q, "q"), "q", Q)
-    lead = a.ndim - 1
-    if lead == 0:
-        raise ValueError("Expected `q` to have shape (N, ..., 4) for cumprod, got (4,).")
-    if not -lead <= axis < lead:
-        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {a.shape}, got {axis}.")
-    m = np.moveaxis(a, axis % lead, 0)
-    shape = m.shape
-    flat = m.reshape(shape[0], -1, 4)
-    out = np.empty(flat.shape, a.dtype)
-    _cumprod(flat, out)
-    return np.moveaxis(out.reshape(shape), 0, axis % lead)
+    return scan(_cumprod, q, axis, "cumprod")
 
 
 def identity(shape=(), dtype=np.float64):

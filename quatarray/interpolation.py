@@ -25,7 +25,7 @@ from numba.extending import overload
 
 from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop
 from ._trig import half_arc, sincos
-from ._validate import as_float, check_core, elementwise, shape_error
+from ._validate import as_float, check_core, elementwise, scan, shape_error
 
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
@@ -894,18 +894,7 @@ def unflip(q, axis=0):
            [1. , 0. , 0. , 0. ],
            [0.8, 0.6, 0. , 0. ]])
     """
-    a = check_core(as_float(q, "q"), "q", Q)
-    lead = a.ndim - 1
-    if lead == 0:
-        raise ValueError("Expected `q` to have shape (N, ..., 4) for unflip, got (4,).")
-    if not -lead <= axis < lead:
-        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {a.shape}, got {axis}.")
-    m = np.moveaxis(a, axis % lead, 0)
-    shape = m.shape
-    out = np.empty((shape[0], math.prod(shape[1:-1]), 4), a.dtype)
-    if shape[0]:
-        _unflip(m.reshape(shape[0], -1, 4), out)
-    return np.moveaxis(out.reshape(shape), 0, axis % lead)
+    return scan(_unflip, q, axis, "unflip")
 
 
 def _times(times, k=None, name="times"):

@@ -325,3 +325,8 @@ def test_conjugate_reverses_products(p, q):
     assert np.allclose(
         qa.conjugate(qa.multiply(p, q)), qa.multiply(qa.conjugate(q), qa.conjugate(p)), atol=1e-9
     )
+
+
+def test_scans_of_empty_streams():
+    assert qa.cumprod(np.empty((0, 4))).shape == (0, 4)
+    assert qa.cumprod(np.empty((3, 0, 4)), axis=1).shape == (3, 0, 4)
