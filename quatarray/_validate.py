@@ -59,6 +59,14 @@ def as_float(x, name, dtype=None):
     return a
 
 
+def float_dtype(dtype):
+    """A `dtype` argument checked to be float32 or float64."""
+    d = np.dtype(dtype)
+    if d not in _FLOATS:
+        raise TypeError(f"Expected `dtype` to be float32 or float64, got {d}.")
+    return d
+
+
 def check_core(a, name, core):
     """Raise the template ``ValueError`` unless ``a.shape`` ends with ``core``."""
     k = len(core)

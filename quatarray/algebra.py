@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import kernel, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, scan
+from ._validate import as_float, check_core, elementwise, float_dtype, scan
 
 Q = (4,)
 
@@ -306,7 +306,7 @@ def identity(shape=(), dtype=np.float64):
     array([[1., 0., 0., 0.],
            [1., 0., 0., 0.]], dtype=float32)
     """
-    dtype = _float_dtype(dtype)
+    dtype = float_dtype(dtype)
     shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
     out = np.zeros(shape + Q, dtype)
     out[..., 0] = 1
@@ -332,7 +332,7 @@ def random(n=None, rng=None, dtype=np.float64):
     >>> qa.random(3, rng=0).shape
     (3, 4)
     """
-    dtype = _float_dtype(dtype)
+    dtype = float_dtype(dtype)
     gen = np.random.default_rng(rng)
     shape = () if n is None else ((n,) if isinstance(n, (int, np.integer)) else tuple(n))
     q = gen.standard_normal(shape + Q)
@@ -374,10 +374,3 @@ def mean(q, weights=None):
     _outer_sum(flat, w, acc)
     vals, vecs = np.linalg.eigh(acc)
     return canonical(vecs[:, -1].astype(a.dtype))
-
-
-def _float_dtype(dtype):
-    d = np.dtype(dtype)
-    if d not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise TypeError(f"Expected `dtype` to be float32 or float64, got {d}.")
-    return d

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, is_weak, result_dtype
+from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype
 from ._mat33 import cofactor33, det33, lerp9, load33, matmul, matvec, scale9, store33, transpose
 from .conversions import from_matrix
 
@@ -221,13 +221,6 @@ def _shape_arg(n):
     return tuple(int(k) for k in n)
 
 
-def _dtype_arg(dtype):
-    d = np.dtype(dtype)
-    if d not in (_F32, _F64):
-        raise TypeError(f"Expected `dtype` to be float32 or float64, got {d}.")
-    return d
-
-
 def _broadcast(shapes, what):
     try:
         return np.broadcast_shapes(*shapes)
@@ -388,7 +381,7 @@ class _Transform:
         dtype : float32 or float64
         """
         lead = _shape_arg(n)
-        dtype = _dtype_arg(dtype)
+        dtype = float_dtype(dtype)
         v = np.zeros(lead + (3,), dtype)
         q = np.zeros(lead + (4,), dtype)
         q[..., 0] = 1
@@ -470,7 +463,7 @@ class _Transform:
 
     def astype(self, dtype):
         """The same transforms in float32 or float64."""
-        dtype = _dtype_arg(dtype)
+        dtype = float_dtype(dtype)
         return type(self)._new(*(a.astype(dtype) for a in (self._v, self._q, self._x)))
 
     # -- group operations --------------------------------------------------
