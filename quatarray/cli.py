@@ -114,7 +114,7 @@ def cmd_convert(args):
     if args.scheduler:
         return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
                           layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
-                          force=args.force)
+                          on_invalid=args.on_invalid, force=args.force)
     fields, core, fn = _target(args.to, args.degrees)
     reader = _open(args, args.IN)
     check_output(args.OUT, [args.IN], args.force)
@@ -211,7 +211,7 @@ def cmd_resample(args):
     if args.scheduler:
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
                           method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force,
-                          in_rate=args.in_rate, layout=args.layout)
+                          in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
     import quatarray as qa
 
     newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")

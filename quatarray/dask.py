@@ -468,14 +468,12 @@ def scheduler_options(scheduler=None):
         yield {"scheduler": scheduler}
         return
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError:  # pragma: no cover - depends on the installation
         raise _usage("--scheduler needs the package 'distributed': pip install 'quatarray[dask]'") from None
     cluster = None
     if scheduler == "local":
-        cluster = LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-        )
+        cluster = local_cluster()
         address = cluster
     else:
         address = scheduler
@@ -493,68 +491,76 @@ def scheduler_options(scheduler=None):
             cluster.close()
 
 
+# How the local cluster departs from Dask's defaults, and why:
+# - Tasks that read their own input (convert's blocks) have no dependencies,
+#   and by default the scheduler hands such "root" tasks to a worker about one
+#   at a time (queuing, ``worker-saturation: 1.1``): every task then waits for
+#   a round trip to the scheduler, about 3 ms here. Our tasks are few and even:
+#   send them all at once.
+# - Worker processes are started with ``MALLOC_TRIM_THRESHOLD_=65536``, which
+#   also switches off glibc's adaptive mmap threshold: every array of a few MB
+#   is then a fresh mmap, page-faulted and zeroed in each task (convert's
+#   tasks ran 1.8x slower than the same blocks in one process). We leave the
+#   variable out so big buffers are reused.
+def _cluster_config():
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    return {"distributed.scheduler.worker-saturation": "inf", "distributed.nanny.pre-spawn-environ": environ}
+
+
+def local_cluster(n_workers=2, **kwargs):
+    """A ``distributed.LocalCluster`` of single-threaded worker processes on 127.0.0.1.
+
+    What ``--scheduler local`` starts (with ``n_workers=2``). Two settings
+    differ from Dask's defaults — no queuing of root tasks, and workers keep
+    glibc's adaptive reuse of big buffers — see the README to set them on a
+    real cluster. Close it when done (it is a context manager).
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, distributed, quatarray as qa, quatarray.dask as qd
+    >>> with qd.local_cluster(1) as cluster, distributed.Client(cluster) as client:
+    ...     q = qa.random(10, rng=0) * 2
+    ...     lazy = qd.normalize(da.from_array(q, chunks=(5, 4)))
+    ...     bool(np.array_equal(client.compute(lazy, sync=True), qa.normalize(q)))
+    True
+    """
+    from distributed import LocalCluster
+
+    options = dict(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                   dashboard_address=None)
+    options.update(kwargs)
+    with dask.config.set(_cluster_config()):
+        return LocalCluster(**options)
+
+
 def _usage(msg):
     from .io.errors import UsageError
 
     return UsageError(msg)
 
 
-def _read_chunk(reader, a, b):
-    """Rows [a, b) of an ``.npy`` stream reader as a Chunk (only those pages mapped)."""
-    from .io.readers import _from_matrix, _reorder
-    from .io.streams import Chunk
-
-    block = reader._block(a, b)
-    if reader.dtype.kind != "f" or not reader.dtype.isnative:
-        block = block.astype(np.float64 if reader.dtype.kind != "f" else reader.dtype.newbyteorder("="))
-    if reader.core == (3, 3):
-        data = _from_matrix(block, reader, a)
-    else:
-        data = np.array(_reorder(block, reader.layout))
-    return Chunk(data, row0=a)
+# --------------------------------------------------------------------------
+# files: where the blocks come from and go to
 
 
-def _write_rows(path, offset, dtype, core, row0, data):
-    """Write `data` as rows ``row0 …`` of the ``.npy`` file `path` (header already written)."""
-    rowbytes = math.prod(core) * np.dtype(dtype).itemsize
-    if len(data) == 0:
-        return 0
-    data = np.ascontiguousarray(data, dtype=dtype)
-    fd = os.open(path, os.O_WRONLY)
-    try:  # a positioned write: no page faults on the fresh file, unlike a memory map
-        view, at = memoryview(data).cast("B"), offset + row0 * rowbytes
-        while len(view):
-            done = os.pwrite(fd, view, at)
-            view, at = view[done:], at + done
-    finally:
-        os.close(fd)
-    return len(data)
+def _open_source(src, layout, chunk):
+    """An ``.npy`` file or ``.zarr`` store of quaternions or matrices, read by the workers."""
+    from .io.readers import is_zarr, open_stream
 
-
-def _convert_task(reader, a, b, to, degrees, tmp, offset, dtype):
-    """Read, check, normalise, convert and write one block; returns the report figures."""
-    import warnings
-
-    from .cli import _target
-    from .io.clean import Cleaner
-
-    with _serial():
-        ch = _read_chunk(reader, a, b)
-        clean = Cleaner(reader, "error")
-        ch, _ = clean.check(ch)  # a bad row raises DataError naming its global row
-        _, core, fn = _target(to, degrees)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            out = np.asarray(fn(ch.data), dtype=dtype)
-        lock = any("gimbal" in str(c.message).lower() for c in caught)
-    _write_rows(tmp, offset, dtype, core, a, out)
-    return clean.normalised, clean.max_dev, lock
+    if not (is_zarr(src) or os.fspath(src).endswith(".npy")):
+        raise _usage(f"{src}: with --scheduler the input is an .npy file or a .zarr store")
+    return open_stream(src, "npy", kind="quat", layout=layout, chunk=chunk)
 
 
 class _NpyTarget:
-    """A temporary ``.npy`` beside `dst` with its header written; renamed over `dst` on success."""
+    """A temporary ``.npy`` beside `dst` with its header written; renamed over `dst` on success.
 
-    def __init__(self, dst, shape, dtype):
+    Tasks write their rows with :meth:`write` (a positioned write: no page
+    faults on the fresh file, unlike a memory map), in any order.
+    """
+
+    def __init__(self, dst, shape, dtype, chunk):
         import tempfile
 
         self.dst = os.fspath(dst)
@@ -562,8 +568,22 @@ class _NpyTarget:
         fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
         os.close(fd)
         mm = np.lib.format.open_memmap(self.tmp, mode="w+", dtype=dtype, shape=tuple(shape))
-        self.offset = mm.offset
+        self.offset, self.dtype, self.rowbytes = mm.offset, np.dtype(dtype), mm[:1].nbytes
         del mm
+
+    def write(self, row0, data):
+        if len(data) == 0:
+            return 0
+        data = np.ascontiguousarray(data, dtype=self.dtype)
+        fd = os.open(self.tmp, os.O_WRONLY)
+        try:
+            view, at = memoryview(data).cast("B"), self.offset + row0 * self.rowbytes
+            while len(view):
+                done = os.pwrite(fd, view, at)
+                view, at = view[done:], at + done
+        finally:
+            os.close(fd)
+        return len(data)
 
     def __enter__(self):
         return self
@@ -575,13 +595,61 @@ class _NpyTarget:
             os.remove(self.tmp)
 
 
-def _check_files(src, dst, force, what="IN"):
+class _ZarrTarget(_NpyTarget):
+    """A temporary zarr store beside `dst`, chunked by `chunk` rows; moved over `dst` on success.
+
+    Every task writes whole zarr chunks (its rows start at a multiple of
+    `chunk`), so no two tasks touch the same chunk.
+    """
+
+    def __init__(self, dst, shape, dtype, chunk):
+        import tempfile
+
+        from .io.readers import import_zarr
+
+        zarr = import_zarr(dst)
+        self.dst = os.fspath(dst).rstrip("/" + os.sep)
+        folder, base = os.path.split(os.path.abspath(self.dst))
+        self.tmp = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
+        shape = tuple(int(n) for n in shape)
+        zarr.create_array(store=self.tmp, shape=shape, dtype=dtype, overwrite=True,
+                          chunks=(max(1, min(int(chunk), shape[0])),) + shape[1:])
+        self.dtype = np.dtype(dtype)
+
+    def write(self, row0, data):
+        import zarr
+
+        if len(data):
+            zarr.open_array(self.tmp, mode="r+")[row0 : row0 + len(data)] = np.asarray(data, self.dtype)
+        return len(data)
+
+    def __exit__(self, kind, exc, tb):
+        import shutil
+
+        if kind is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            return
+        old = None
+        if os.path.exists(self.dst):  # --force: the old store goes only once the new one is in place
+            old = self.tmp + ".old"
+            os.replace(self.dst, old)
+        os.replace(self.tmp, self.dst)
+        if old:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def _open_target(dst, shape, dtype, chunk):
+    from .io.readers import is_zarr
+
+    return (_ZarrTarget if is_zarr(dst) else _NpyTarget)(dst, shape, dtype, chunk)
+
+
+def _check_files(src, dst, force):
+    from .io.readers import is_zarr
     from .io.writers import check_output
 
-    if os.fspath(dst).endswith(".zarr") or os.fspath(src).endswith(".zarr"):
-        raise _usage("--scheduler: .zarr files are not supported yet; use .npy")
-    if not os.fspath(dst).endswith(".npy"):
-        raise _usage(f"{dst}: with --scheduler the output is written block by block to an .npy file")
+    if not (is_zarr(dst) or os.fspath(dst).endswith(".npy")):
+        raise _usage(f"{dst}: with --scheduler the output is an .npy file or a .zarr store, written block by block")
     check_output(dst, [src], force)
 
 
@@ -592,21 +660,123 @@ def _blocks(rows, chunk):
     return [(a, min(a + chunk, rows)) for a in range(0, rows, chunk)]
 
 
-def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000, scheduler=None,
-                 force=False, err=None):
-    """``quatarray convert SRC DST --to TO --scheduler …``: an ``.npy`` stream converted block by block.
+_scratch = threading.local()
 
-    Every block of `chunk` rows is read from a memory map, checked (a
-    non-finite or zero quaternion, or a matrix that is not a rotation, is an
-    error naming its row), normalised, converted and written into its place
-    in DST by one task; DST appears (renamed from a temporary file beside
-    it) only when every block succeeded.
+
+def _scratch_rows(n, core, dtype):
+    """A reused ``(n,) + core`` array of this thread (fresh pages in every task cost more
+    than the conversion)."""
+    key = (tuple(core), np.dtype(dtype))
+    buf = getattr(_scratch, "buf", None)
+    if buf is None or buf[0] != key or buf[1].shape[0] < n:
+        buf = _scratch.buf = (key, np.empty((n,) + tuple(core), dtype))
+    return buf[1][:n]
+
+
+# --------------------------------------------------------------------------
+# files: which input rows each task reads (--on-invalid drop), and the report
+
+
+def _bad_rows_task(reader, a, b):
+    """Input rows in ``[a, b)`` that ``--on-invalid drop`` drops."""
+    from .io.clean import Cleaner
+
+    with _serial():
+        _, good = Cleaner(reader, "drop").check(reader.read(a, b, bad_ok=True))
+    return a + np.flatnonzero(~good)
+
+
+def _plan_rows(reader, chunk, drop, opts):
+    """``[(in_a, in_b, out_a), ...]``: the input rows each task reads and the first
+    output row it writes, and the (sorted) input rows dropped.
+
+    Without `drop`, input and output rows are the same blocks of `chunk`
+    rows. With `drop`, a first pass finds the bad rows; then task j reads the
+    input rows that hold output rows ``[j·chunk, (j+1)·chunk)``, so every
+    task still writes whole output blocks (whole zarr chunks).
+    """
+    from .io.errors import DataError
+
+    blocks = _blocks(reader.rows, chunk)
+    if not drop:
+        return [(a, b, a) for a, b in blocks], np.empty(0, np.int64)
+    found = dask.compute(*[dask.delayed(_bad_rows_task, pure=False)(reader, a, b) for a, b in blocks], **opts)
+    bad = np.concatenate(found) if found else np.empty(0, np.int64)
+    kept = reader.rows - bad.size
+    if kept == 0:
+        raise DataError(f"{reader.name}: no valid rows (all {reader.rows} dropped)")
+    # output row k is input row k + (the bad rows before it): bad row i has bad[i] - i good rows before it
+    outs = np.arange(0, kept, int(chunk))
+    ins = outs + np.searchsorted(bad - np.arange(bad.size), outs, side="right")
+    ends = np.append(ins[1:], reader.rows)
+    return [(int(a), int(b), int(o)) for a, b, o in zip(ins, ends, outs)], bad
+
+
+def _report(reader, figures, dropped, err):
+    """The command line's notes: rows dropped, quaternions normalised."""
+    from .io.clean import Cleaner
+
+    clean = Cleaner(reader, "drop")
+    clean.dropped = dropped
+    clean.normalised = sum(f[0] for f in figures)
+    clean.max_dev = max((f[1] for f in figures), default=0.0)
+    clean.report(err)
+
+
+def _read_clean(reader, a, b, drop, clean):
+    """Rows ``[a, b)`` checked and normalised (bad rows dropped, or a DataError naming the row)."""
+    return clean(reader.read(a, b, bad_ok=drop))
+
+
+# --------------------------------------------------------------------------
+# convert_file
+
+
+def _convert_task(reader, a, b, row0, to, degrees, target, drop):
+    """Read, check, normalise, convert and write input rows ``[a, b)`` from output row `row0` on.
+
+    The rows go through in pieces of the command line's size, so each piece
+    is checked and converted while it is in cache, into a reused buffer
+    written with one call. Returns the report figures.
+    """
+    import warnings
+
+    from .cli import _PIECE, _target
+    from .io.clean import Cleaner
+
+    _, core, fn = _target(to, degrees)
+    out = _scratch_rows(b - a, core, target.dtype)
+    clean = Cleaner(reader, "drop" if drop else "error")
+    n = 0
+    with _serial(), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for p in range(a, b, _PIECE):
+            ch = _read_clean(reader, p, min(p + _PIECE, b), drop, clean)
+            fn(ch.data.astype(target.dtype, copy=False), out=out[n : n + len(ch)])
+            n += len(ch)
+        lock = any("gimbal" in str(c.message).lower() for c in caught)
+    target.write(row0, out[:n])
+    return clean.normalised, clean.max_dev, lock
+
+
+def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000, scheduler=None,
+                 on_invalid="error", force=False, err=None):
+    """``quatarray convert SRC DST --to TO --scheduler …``: a stream converted block by block.
+
+    Every block of `chunk` rows is read by one task (from a memory map, or
+    from the zarr store), checked (a non-finite or zero quaternion, or a
+    matrix that is not a rotation, is an error naming its row, or is dropped),
+    normalised, converted and written into its place in DST; DST appears
+    (moved from a temporary file or store beside it) only when every block
+    succeeded.
 
     Parameters
     ----------
-    src, dst : str or path-like
-        ``.npy`` files: SRC holds ``(N, 4)`` quaternions in `layout` order or
-        ``(N, 3, 3)`` rotation matrices.
+    src : str or path-like
+        An ``.npy`` file or ``.zarr`` store holding ``(N, 4)`` quaternions in
+        `layout` order or ``(N, 3, 3)`` rotation matrices.
+    dst : str or path-like
+        An ``.npy`` file or a ``.zarr`` store (chunked by `chunk` rows).
     to : {"quat", "xyzw", "matrix", "rotvec", "axis-angle", "euler:SEQ"}
     degrees : bool
     layout : {"wxyz", "xyzw"}
@@ -615,10 +785,13 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
     scheduler : None, "local", str or distributed.Client
         See :func:`scheduler_options`. Workers must see SRC and DST at the
         same paths (a shared file system on a real cluster).
+    on_invalid : {"error", "drop"}
+        ``"drop"`` first finds the bad rows (one more pass over SRC), so
+        that every task still writes whole blocks of DST.
     force : bool
         Overwrite an existing DST.
     err : file, optional
-        Where the normalisation and gimbal-lock notes go (default stderr).
+        Where the notes (rows dropped, normalised, gimbal lock) go (default stderr).
 
     Returns
     -------
@@ -626,26 +799,20 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
         0 (the command line's exit status).
     """
     from .cli import _target
-    from .io.readers import open_stream
 
     err = sys.stderr if err is None else err
     _check_files(src, dst, force)
     _, core, _ = _target(to, degrees)  # a bad --to fails here, before any work
-    reader = open_stream(src, "npy", kind="quat", layout=layout or "wxyz", chunk=chunk)
+    reader = _open_source(src, layout or "wxyz", chunk)
     dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
-    blocks = _blocks(reader.rows, chunk)
-    with _NpyTarget(dst, (reader.rows,) + tuple(core), dtype) as target:
-        tasks = [
-            dask.delayed(_convert_task, pure=False)(reader, a, b, to, degrees, target.tmp, target.offset, dtype)
-            for a, b in blocks
-        ]
-        with scheduler_options(scheduler) as opts:
+    drop = on_invalid == "drop"
+    with scheduler_options(scheduler) as opts:
+        plan, bad = _plan_rows(reader, chunk, drop, opts)
+        with _open_target(dst, (reader.rows - bad.size,) + tuple(core), dtype, chunk) as target:
+            tasks = [dask.delayed(_convert_task, pure=False)(reader, a, b, o, to, degrees, target, drop)
+                     for a, b, o in plan]
             figures = dask.compute(*tasks, **opts)
-    normalised = sum(f[0] for f in figures)
-    if normalised:
-        dev = max(f[1] for f in figures)
-        print(f"{reader.name}: normalised {normalised} non-unit quaternion{'s' if normalised != 1 else ''} "
-              f"(largest | |q| - 1 | = {dev:.3g})", file=err)
+    _report(reader, figures, bad.size, err)
     lock = sum(f[2] for f in figures)
     if lock:
         print(f"{reader.name}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there "
@@ -690,7 +857,36 @@ def _materialise(x, name):
     return a
 
 
-def _spline_task(times, keys, new_times, method):
+def _flip_summary(block):
+    """What the sign scan needs of one key block: its first row, its last row
+    after the block is unflipped on its own, and the rows that local unflip negated
+    (keys normalised first, as :func:`quatarray.spline` does)."""
+    with _serial():
+        local = qa.unflip(qa.normalize(block))
+    flipped = (np.signbit(local) != np.signbit(block)).any(axis=-1)
+    return local[:1], local[-1:], flipped
+
+
+def _window_flips(summaries, starts, firsts):
+    """Whether the global unflip negates row ``firsts[j]`` (one bool per output block).
+
+    One task: the chunk signs carried across the borders (as :func:`unflip`
+    does), then each window's first row looked up in its chunk's local flips.
+    """
+    carries = _carry_all(_unflip_carry, [(first, last) for first, last, _ in summaries])
+    out = []
+    for w0 in firsts:
+        c = int(np.searchsorted(starts, w0, side="right")) - 1
+        chunk_sign = bool(np.ravel(carries[c])[0]) if carries[c] is not None else False
+        out.append(chunk_sign != bool(summaries[c][2][w0 - starts[c]]))
+    return out
+
+
+def _spline_task(times, keys, flip0, new_times, method):
+    """The in-memory spline on a window of keys whose first row takes the global sign."""
+    if flip0:
+        keys = np.array(keys)
+        keys[0] = -keys[0]
     with _serial():
         return qa.spline(times, keys, new_times, method=method)
 
@@ -737,12 +933,14 @@ def _output_chunks(nt, t, key_chunks, chunks, given):
 def spline(times, keys, new_times, method="bezier", chunks=None):
     """Dask version of :func:`quatarray.spline`: resample a key stream, lazily in the keys.
 
-    The keys (``(K, 4)``, chunked along K) are unflipped across the whole
-    stream first (the prefix scan of :func:`unflip`); then each output block
-    runs the in-memory :func:`quatarray.spline` on the new times it holds and
-    the keys its segments need — one key before and two after, taken across
-    chunk borders — so it equals the in-memory result (to rounding) whatever
-    the chunking.
+    Each output block runs the in-memory :func:`quatarray.spline` on the new
+    times it holds and the keys its segments need — one key before and two
+    after, taken across chunk borders. The keys' sign continuity (the
+    in-memory spline unflips the whole stream) is a prefix scan: one small
+    task per key block finds the block's own sign flips, and one task
+    carries the signs across the borders and tells each window the global
+    sign of its first key. So the result equals the in-memory one (to
+    rounding) whatever the chunking, in ``2·blocks + 1`` tasks.
 
     `times` and `new_times` are the plan: 1-D, small next to the keys, and
     read when this function is called (Dask arrays are computed for them).
@@ -788,22 +986,27 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         raise ValueError(f"Expected `keys` to hold at least 2 keys, got {k}.")
     t, nt = _plan_times(t_raw, nt_raw, k)
     dtype = as_float(np.empty(0, x.dtype), "keys").dtype
-    u = unflip(x.astype(dtype))
+    x = x.astype(dtype)
     sizes = _output_chunks(nt, t, x.chunks[0], chunks, given)
-    token = tokenize("spline", t_raw, u, nt_raw, method, sizes)
-    name = f"spline-{token}"
-    dsk = {}
-    a = 0
+    token = tokenize("spline", t_raw, x, nt_raw, method, sizes)
+    name, sname, fname = (f"spline{p}-{token}" for p in ("", "-summary", "-flips"))
+    dsk = {(sname, i): (_flip_summary, (x.name, i, 0)) for i in range(x.numblocks[0])}
+    starts = np.cumsum((0,) + x.chunks[0])[:-1]
+    firsts, a = [], 0
     for j, n in enumerate(sizes):
         part = nt[a : a + n]
         if n == 0:
             dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
             continue
-        seg = np.clip(np.searchsorted(t, part, side="right") - 1, 0, k - 2)
-        w0, w1 = max(0, int(seg.min()) - 1), min(k, int(seg.max()) + 3)
-        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(u, w0, w1), nt_raw[a : a + n], method)
+        # the segments of the block's earliest and latest new times bound all of its segments
+        seg = np.clip(np.searchsorted(t, [part.min(), part.max()], side="right") - 1, 0, k - 2)
+        w0, w1 = max(0, int(seg[0]) - 1), min(k, int(seg[1]) + 3)
+        flip = (operator.getitem, fname, len(firsts))
+        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, nt_raw[a : a + n], method)
+        firsts.append(w0)
         a += n
-    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[u])
+    dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x])
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
 
 
@@ -863,57 +1066,56 @@ def angular_velocity(q, times, frame="space"):
 # resample_file
 
 
-def _read_keys_task(reader, a, b):
-    """Rows [a, b) of an ``.npy`` key stream, checked and normalised as the command line does."""
+def _read_keys_task(reader, a, b, drop):
+    """Input rows ``[a, b)`` of a key stream, checked and normalised as the command line does."""
     from .io.clean import Cleaner
 
     with _serial():
-        clean = Cleaner(reader, "error")
-        ch, _ = clean.check(_read_chunk(reader, a, b))
-    return ch.data
+        return _read_clean(reader, a, b, drop, Cleaner(reader, "drop" if drop else "error")).data
 
 
-def _lazy_npy_keys(reader, chunk):
-    """An ``.npy`` quaternion stream as a Dask array read (and checked) by the workers."""
+def _lazy_keys(reader, plan, kept, drop):
+    """A key stream (npy or zarr) as a Dask array read and checked by the workers,
+    one block per planned task (see :func:`_plan_rows`)."""
     dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
-    blocks = _blocks(reader.rows, chunk)
-    name = "read-keys-" + tokenize(reader.path, os.path.getmtime(reader.path), reader.layout, blocks)
-    dsk = {(name, i, 0): (_read_keys_task, reader, a, b) for i, (a, b) in enumerate(blocks)}
-    chunks = (tuple(b - a for a, b in blocks), (4,))
-    return da.Array(HighLevelGraph.from_collections(name, dsk, dependencies=[]), name, chunks, meta=np.empty((0, 0), dtype))
+    mtime = os.path.getmtime(reader.path)
+    name = "read-keys-" + tokenize(reader.path, mtime, reader.layout, plan, drop)
+    dsk = {(name, i, 0): (_read_keys_task, reader, a, b, drop) for i, (a, b, _) in enumerate(plan)}
+    sizes = tuple(int(n) for n in np.diff([o for _, _, o in plan] + [kept]))
+    return da.Array(HighLevelGraph.from_collections(name, dsk, dependencies=[]), name, (sizes, (4,)),
+                    meta=np.empty((0, 0), dtype))
 
 
-def _write_block(path, offset, dtype, core, row0, data):
-    return np.array([_write_rows(path, offset, dtype, core, row0, data)])
+def _write_block(target, row0, data):
+    return np.array([target.write(row0, data)])
 
 
-def _store_npy(x, target):
+def _store(x, target):
     """A lazy array of row counts whose tasks write every block of `x` into its rows of `target`."""
     starts = np.cumsum((0,) + x.chunks[0])
     keys = list(_flatten_keys(x.__dask_keys__()))
     name = "store-" + tokenize(x, target.tmp)
-    dsk = {
-        (name, i): (_write_block, target.tmp, target.offset, x.dtype, x.shape[1:], int(starts[i]), k)
-        for i, k in enumerate(keys)
-    }
+    dsk = {(name, i): (_write_block, target, int(starts[i]), k) for i, k in enumerate(keys)}
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x])
     return da.Array(graph, name, chunks=((1,) * len(keys),), meta=np.empty(0, np.int64))
 
 
 def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_000_000, scheduler=None,
-                  in_rate=None, layout=None, force=False, err=None):
+                  in_rate=None, layout=None, on_invalid="error", force=False, err=None):
     """``quatarray resample SRC DST (--rate HZ | --times FILE) --scheduler …`` on Dask workers.
 
-    The keys are checked (bad rows are errors naming the row), normalised and
-    unflipped across the whole stream; the new times are those of the command
-    line (``t0 + k/rate`` up to the last key time, or a file of times inside
-    the keys' span); every output block of about `chunk` rows is
-    interpolated with :func:`spline` by one task and written into its rows
-    of the ``.npy`` DST (renamed from a temporary file when all succeeded).
+    The keys are checked (a bad row is an error naming it, or is dropped),
+    normalised and unflipped across the whole stream; the new times are
+    those of the command line (``t0 + k/rate`` up to the last key time, or a
+    file of times inside the keys' span); every output block of `chunk` rows
+    is interpolated with :func:`spline` by one task and written into its
+    rows of DST (an ``.npy`` file or a ``.zarr`` store chunked by `chunk`
+    rows), which appears when all succeeded.
 
-    An ``.npy`` SRC has no times: give its sampling rate as `in_rate` (key k
-    at k / in_rate seconds); its blocks are read by the workers. Other
-    formats (csv, tum, euroc, parquet, bvh) are read on the client.
+    An ``.npy`` or ``.zarr`` SRC has no times: give its sampling rate as
+    `in_rate` (key k at k / in_rate seconds; dropped rows keep their times
+    out); its blocks are read by the workers. Other formats (csv, tum,
+    euroc, parquet, bvh) are read on the client.
 
     Returns
     -------
@@ -926,6 +1128,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     from .io.readers import open_stream
     from .io.streams import concat
 
+    err = sys.stderr if err is None else err
     if (rate is None) == (times is None):
         raise _usage("resample needs exactly one of --rate and --times")
     _check_files(src, dst, force)
@@ -934,34 +1137,38 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
 
         check_output(dst, [times], True)  # DST must not be the times file
     newt = _RateTimes(rate) if rate is not None else _FileTimes(times, "auto")
-    reader = open_stream(src, "auto", kind="quat", layout=layout, chunk=chunk)
+    reader = open_stream(src, "auto", kind="quat", layout=layout, chunk=chunk, on_invalid=on_invalid)
     if not reader.has_time and in_rate is None:
         raise _usage(f"{reader.name}: has no time column; give its sampling rate with --in-rate HZ")
     if in_rate is not None and not (in_rate > 0 and np.isfinite(in_rate)):
         raise _usage(f"--in-rate must be positive, got {in_rate}")
-    if reader.format == "npy":
-        keys = _lazy_npy_keys(reader, chunk)
-        t = np.arange(reader.rows, dtype=np.float64) / in_rate
-    else:
-        clean = Cleaner(reader, "error", ordered=True)
-        chunks = [clean(ch) for ch in reader]
-        whole = concat([c for c in chunks if len(c)])
-        keys = da.from_array(whole.data, chunks=(int(chunk), 4))
-        t = whole.t if whole.t is not None else (np.arange(len(whole.data)) / in_rate)
-        clean.report(sys.stderr if err is None else err)
-    if t.shape[0] < 2:
-        raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
-    newt.t0 = float(t[0])
-    nt = newt.upto(float(t[-1]), True)
-    newt.finish(float(t[-1]))
-    if nt.size == 0:
-        raise DataError(f"{reader.name}: no new times inside the keys' span")
-    try:
-        lazy = spline(t, keys, nt, method=method, chunks=chunk)
-    except ValueError as exc:
-        raise DataError(f"{reader.name}: {exc}") from None
-    with _NpyTarget(dst, lazy.shape, lazy.dtype) as target:
-        written = _store_npy(lazy, target).sum()
-        with scheduler_options(scheduler) as opts:
-            dask.compute(written, **opts)
+    drop = on_invalid == "drop"
+    with scheduler_options(scheduler) as opts:
+        if reader.format in ("npy", "zarr"):
+            plan, bad = _plan_rows(reader, chunk, drop, opts)
+            keys = _lazy_keys(reader, plan, reader.rows - bad.size, drop)
+            t = np.delete(np.arange(reader.rows, dtype=np.float64), bad) / in_rate
+            _report(reader, [], bad.size, err)
+        else:
+            clean = Cleaner(reader, on_invalid, ordered=True)
+            whole = [c for c in map(clean, reader) if len(c)]
+            if not whole:
+                raise DataError(f"{reader.name}: no valid rows")
+            whole = concat(whole)
+            keys = da.from_array(whole.data, chunks=(int(chunk), 4))
+            t = whole.t if whole.t is not None else (np.arange(len(whole.data)) / in_rate)
+            clean.report(err)
+        if t.shape[0] < 2:
+            raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
+        newt.t0 = float(t[0])
+        nt = newt.upto(float(t[-1]), True)
+        newt.finish(float(t[-1]))
+        if nt.size == 0:
+            raise DataError(f"{reader.name}: no new times inside the keys' span")
+        try:
+            lazy = spline(t, keys, nt, method=method, chunks=chunk)
+        except ValueError as exc:
+            raise DataError(f"{reader.name}: {exc}") from None
+        with _open_target(dst, lazy.shape, lazy.dtype, chunk) as target:
+            dask.compute(_store(lazy, target).sum(), **opts)
     return 0

@@ -502,7 +502,7 @@ def test_scheduler_wiring(capsys, monkeypatch):
                         raising=False)
     assert main(["convert", "a.npy", "b.npy", "--to", "matrix", "--scheduler", "local", "--chunk", "10"]) == 0
     assert seen["c"] == ("a.npy", "b.npy", dict(to="matrix", degrees=False, layout="wxyz", chunk=10,
-                                                  scheduler="local", force=False))
+                                                  scheduler="local", on_invalid="error", force=False))
     assert main(["resample", "a.npy", "b.npy", "--rate", "50", "--scheduler", "tcp://h:8786"]) == 0
     assert seen["r"][2]["rate"] == 50 and seen["r"][2]["scheduler"] == "tcp://h:8786"
 

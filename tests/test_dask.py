@@ -54,9 +54,7 @@ def _warm_up():
 @pytest.fixture(scope="module")
 def client():
     _warm_up()
-    cluster = distributed.LocalCluster(
-        n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
-    )
+    cluster = qd.local_cluster(2)
     c = distributed.Client(cluster)
     try:
         yield c
@@ -487,3 +485,103 @@ def test_resample_file_times_and_text_input(npy_stream, data_dir):
     src = data_dir / "tum_freiburg1_xyz_groundtruth.txt"
     qd.resample_file(src, dst, rate=200, chunk=5000, force=True, scheduler=None)
     assert np.load(dst).shape[1] == 4 and np.isfinite(np.load(dst)).all()
+
+
+# --------------------------------------------------------------------------
+# files: zarr stores in and out, --on-invalid drop, errors naming their row
+
+
+def _bad_stream(n=5000, seed=12):
+    """A stream with bad rows: the first row, rows on block borders (chunk 700), a whole
+    block of bad rows, nan, inf and zero quaternions."""
+    q = stream(n, seed=seed)
+    bad = [0, 699, 700, 701, 1399, 2345, n - 1] + list(range(2800, 3500))
+    for k, i in enumerate(bad):
+        q[i] = (np.nan, 1, 0, 0) if k % 3 == 0 else (0, 0, 0, 0) if k % 3 == 1 else (np.inf, 0, 0, 1)
+    return q, len(bad)
+
+
+def _zarr_store(path, a, rows):
+    zarr = pytest.importorskip("zarr")
+    zarr.create_array(store=str(path), data=a, chunks=(rows,) + a.shape[1:])
+    return path
+
+
+def _read_zarr(path):
+    import zarr
+
+    arr = zarr.open_array(str(path), mode="r")
+    return arr[:], arr.chunks
+
+
+@pytest.mark.parametrize("out", ["npy", "zarr"])
+def test_convert_file_drop_equals_cli(client, npy_stream, out, capsys):
+    from quatarray.cli import main
+
+    if out == "zarr":
+        pytest.importorskip("zarr")
+    q, nbad = _bad_stream()
+    np.save(npy_stream / "holes.npy", q)
+    src, ref = npy_stream / "holes.npy", npy_stream / "holes-ref.npy"
+    assert main(["convert", str(src), str(ref), "--to", "euler:ZYX", "--on-invalid", "drop", "--force"]) == 0
+    expect_err = capsys.readouterr().err
+    assert f"dropped {nbad} invalid rows" in expect_err
+    dst = npy_stream / f"holes-d.{out}"
+    assert qd.convert_file(src, dst, "euler:ZYX", chunk=700, scheduler=client, on_invalid="drop") == 0
+    got, chunks = _read_zarr(dst) if out == "zarr" else (np.load(dst), None)
+    assert got.shape == (5000 - nbad, 3)
+    assert same(got, np.load(ref))
+    assert capsys.readouterr().err == expect_err  # the same notes: rows dropped, normalised
+    if out == "zarr":
+        assert chunks == (700, 3)  # every task wrote whole chunks
+    assert not [p for p in npy_stream.iterdir() if p.name.startswith(".holes-d")]
+
+
+def test_convert_file_zarr_in_and_out(client, npy_stream):
+    q = np.load(npy_stream / "q.npy")
+    src = _zarr_store(npy_stream / "q.zarr", q[:, [1, 2, 3, 0]], rows=333)  # stored x, y, z, w
+    dst = npy_stream / "m.zarr"
+    for force in (False, True):  # a second run replaces the store
+        qd.convert_file(src, dst, "matrix", layout="xyzw", chunk=1000, scheduler=client, force=force)
+        got, chunks = _read_zarr(dst)
+        assert chunks == (1000, 3, 3)
+        assert same(got, qa.as_matrix(qa.normalize(q)))
+    assert sorted(p.name for p in npy_stream.iterdir() if "m.zarr" in p.name) == ["m.zarr"]
+    # the command line's in-memory path reads a zarr store too
+    from quatarray.cli import main
+
+    assert main(["convert", str(src), str(npy_stream / "m1.npy"), "--to", "matrix", "--layout", "xyzw"]) == 0
+    assert same(np.load(npy_stream / "m1.npy"), got)
+
+
+def test_convert_file_bad_row_named_in_a_later_block(client, npy_stream):
+    from quatarray.io.errors import DataError
+
+    q = np.load(npy_stream / "q.npy")
+    q[4321] = 0
+    src = _zarr_store(npy_stream / "zero.zarr", q, rows=500)
+    with pytest.raises(DataError, match=r"zero\.zarr: row 4321: zero quaternion"):
+        qd.convert_file(src, npy_stream / "never.zarr", "quat", chunk=1000, scheduler=client)
+    assert not [p for p in npy_stream.iterdir() if "never" in p.name]
+    every = _zarr_store(npy_stream / "nan.zarr", np.full((10, 4), np.nan), rows=3)
+    with pytest.raises(DataError, match=r"nan\.zarr: no valid rows \(all 10 dropped\)"):
+        qd.convert_file(every, npy_stream / "never.npy", "quat", chunk=4, scheduler=client, on_invalid="drop")
+
+
+@needs("interpolation")
+def test_resample_file_drop_zarr_equals_cli(client, npy_stream, capsys):
+    from quatarray.cli import main
+
+    q, nbad = _bad_stream(seed=13)
+    np.save(npy_stream / "kholes.npy", q)
+    src = _zarr_store(npy_stream / "kholes.zarr", q, rows=640)
+    ref = npy_stream / "kholes-ref.npy"
+    assert main(["resample", str(npy_stream / "kholes.npy"), str(ref), "--rate", "7", "--in-rate", "2",
+                 "--on-invalid", "drop", "--chunk", "900", "--force"]) == 0
+    assert f"dropped {nbad} invalid rows" in capsys.readouterr().err
+    dst = npy_stream / "kholes-r.zarr"
+    assert qd.resample_file(src, dst, rate=7, in_rate=2, chunk=800, scheduler=client, on_invalid="drop") == 0
+    assert f"dropped {nbad} invalid rows" in capsys.readouterr().err
+    got, chunks = _read_zarr(dst)
+    assert chunks == (800, 4)
+    np.testing.assert_allclose(got, np.load(ref), rtol=0, atol=1e-13)

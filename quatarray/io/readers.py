@@ -12,6 +12,9 @@ and describes its stream with a few attributes:
 ``rows``      the row count when known before reading (npy, parquet, bvh), else None
 ``skipped``   rows the parser dropped (``on_invalid="drop"`` only)
 
+``.zarr`` stores (with the optional package zarr) are read like npy files,
+block by block.
+
 ``where(row)`` turns a data-row index into ``file:line`` (text) or
 ``file: row N`` (binary) for error messages.
 
@@ -29,6 +32,11 @@ from .errors import DataError, UsageError
 from .streams import Chunk
 
 DEFAULT_CHUNK = 1 << 18
+
+
+def is_zarr(path):
+    """Whether `path` names a zarr store (a folder whose name ends in ``.zarr``)."""
+    return os.fspath(path).rstrip("/" + os.sep).endswith(".zarr")
 
 
 def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DEFAULT_CHUNK,
@@ -76,7 +84,7 @@ def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DE
     name = name or path
     if not os.path.exists(path):
         raise UsageError(f"{name}: no such file")
-    if os.path.isdir(path):
+    if os.path.isdir(path) and not is_zarr(path):
         raise UsageError(f"{name}: is a directory")
     if fmt not in F.FORMATS:
         raise UsageError(f"unknown format {fmt!r}")
@@ -89,6 +97,8 @@ def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DE
     chunk = int(chunk)
     if chunk < 1:
         raise UsageError(f"--chunk must be at least 1, got {chunk}")
+    if is_zarr(path):
+        return ZarrReader(path, name, kind, layout, chunk)
     if fmt == "npy":
         return NpyReader(path, name, kind, layout, chunk)
     if fmt == "parquet":
@@ -129,6 +139,22 @@ def _reorder(q, layout):
 # npy
 
 
+def array_layout(name, kind, layout, shape, dtype):
+    """``(core, columns, layout)`` of a stored array of rotations or vectors (npy, zarr),
+    or a :class:`DataError` saying what is wrong with its dtype or shape."""
+    if dtype.kind not in "fiub" or dtype.fields is not None:
+        raise DataError(f"{name}: expected an array of real numbers, got dtype {dtype}")
+    if kind == "quat":
+        if len(shape) == 2 and shape[1] == 4:
+            return (4,), ["w", "x", "y", "z"] if layout == "wxyz" else ["x", "y", "z", "w"], layout
+        if len(shape) == 3 and shape[1:] == (3, 3):
+            return (3, 3), ["matrix 3x3"], "matrix"
+        raise DataError(f"{name}: expected quaternions of shape (N, 4) (or rotation matrices (N, 3, 3)), got {shape}")
+    if len(shape) == 2 and shape[1] == 3:
+        return (3,), ["x", "y", "z"], layout
+    raise DataError(f"{name}: expected vectors of shape (N, 3), got {shape}")
+
+
 class NpyReader(Reader):
     """A ``.npy`` array read one memory-mapped chunk at a time.
 
@@ -152,23 +178,8 @@ class NpyReader(Reader):
             if os.path.getsize(path) == 0:
                 raise F.empty(name) from None
             raise DataError(f"{name}: not a valid .npy file ({exc})") from None
-        if dtype.kind not in "fiub" or dtype.fields is not None:
-            raise DataError(f"{name}: expected an array of real numbers, got dtype {dtype}")
         self.dtype, self.shape, self.fortran = dtype, shape, fortran
-        if kind == "quat":
-            if len(shape) == 2 and shape[1] == 4:
-                self.core, self.columns = (4,), ["w", "x", "y", "z"] if self.layout == "wxyz" else ["x", "y", "z", "w"]
-            elif len(shape) == 3 and shape[1:] == (3, 3):
-                self.core, self.columns, self.layout = (3, 3), ["matrix 3x3"], "matrix"
-            else:
-                raise DataError(
-                    f"{name}: expected quaternions of shape (N, 4) (or rotation matrices (N, 3, 3)), got {shape}"
-                )
-        else:
-            if len(shape) == 2 and shape[1] == 3:
-                self.core, self.columns = (3,), ["x", "y", "z"]
-            else:
-                raise DataError(f"{name}: expected vectors of shape (N, 3), got {shape}")
+        self.core, self.columns, self.layout = array_layout(name, kind, self.layout, shape, dtype)
         self.rows = shape[0]
         if self.rows == 0:
             raise F.empty(name)
@@ -183,19 +194,56 @@ class NpyReader(Reader):
         rowbytes = int(np.prod(self.core)) * self.dtype.itemsize
         return np.memmap(self.path, self.dtype, "r", offset=self.offset + a * rowbytes, shape=(b - a,) + self.core)
 
+    def read(self, a, b, bad_ok=False):
+        """Rows ``[a, b)`` as a chunk of (w, x, y, z) quaternions (or vectors),
+        with only those rows' pages mapped. Matrices become quaternions; one
+        that is not a rotation raises, or becomes a nan row with `bad_ok`."""
+        block = self._block(a, b)
+        if self.dtype.kind != "f" or not self.dtype.isnative:
+            block = block.astype(np.float64 if self.dtype.kind != "f" else self.dtype.newbyteorder("="))
+        if self.core == (3, 3):
+            return Chunk(_from_matrix(block, self, a, bad_ok), row0=a)
+        if self.kind == "quat":
+            return Chunk(_reorder(block, self.layout), row0=a)
+        return Chunk(block, row0=a)
+
     def __iter__(self):
         for a in range(0, self.rows, self.chunk):
-            b = min(a + self.chunk, self.rows)
-            block = self._block(a, b)
-            if self.dtype.kind != "f" or not self.dtype.isnative:
-                block = block.astype(np.float64 if self.dtype.kind != "f" else self.dtype.newbyteorder("="))
-            if self.core == (3, 3):
-                yield Chunk(_from_matrix(block, self, a), row0=a)
-            elif self.kind == "quat":
-                yield Chunk(_reorder(block, self.layout), row0=a)
-            else:
-                yield Chunk(block, row0=a)
-            del block
+            yield self.read(a, min(a + self.chunk, self.rows))
+
+
+class ZarrReader(NpyReader):
+    """A zarr array (a ``.zarr`` store of shape (N, 4), (N, 3, 3) or (N, 3)) read
+    one block of rows at a time; needs the optional package ``zarr``."""
+
+    format = "zarr"
+
+    def __init__(self, path, name, kind, layout, chunk):
+        zarr = import_zarr(name)
+        try:
+            arr = zarr.open_array(path, mode="r")
+        except Exception as exc:  # zarr raises several kinds for a folder that is no array
+            raise DataError(f"{name}: not a zarr array ({type(exc).__name__}: {exc})") from None
+        self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        self.dtype, self.shape, self.fortran = np.dtype(arr.dtype), tuple(arr.shape), False
+        self.core, self.columns, self.layout = array_layout(name, kind, layout or "wxyz", self.shape, self.dtype)
+        self.rows = self.shape[0]
+        if self.rows == 0:
+            raise F.empty(name)
+
+    def _block(self, a, b):
+        import zarr
+
+        return zarr.open_array(self.path, mode="r")[a:b]
+
+
+def import_zarr(name):
+    """The ``zarr`` module, or a usage error naming the file that needs it."""
+    try:
+        import zarr
+    except ImportError:
+        raise UsageError(f"{name}: zarr stores need the package 'zarr': pip install 'quatarray[dask]'") from None
+    return zarr
 
 
 def _from_matrix(m, reader, row0, bad_ok=False):

@@ -34,7 +34,7 @@ def check_output(out, inputs=(), force=False):
         same = os.path.exists(out) and os.path.exists(src) and os.path.samefile(out, src)
         if same or os.path.abspath(out) == os.path.abspath(src):
             raise UsageError(f"{out}: the output is the input file; write to another file")
-    if os.path.isdir(out):
+    if os.path.isdir(out) and not out.rstrip("/").endswith(".zarr"):  # a zarr store is a folder
         raise UsageError(f"{out}: is a directory")
     if os.path.exists(out) and not force:
         raise UsageError(f"{out}: exists; use --force to overwrite it")
