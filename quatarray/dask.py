@@ -57,6 +57,7 @@ try:
     from dask.base import tokenize
     from dask.core import flatten as _flatten_keys
     from dask.highlevelgraph import HighLevelGraph
+    from dask.layers import ArrayValuesDep
 except ImportError as exc:  # pragma: no cover - depends on the installation
     raise ImportError(
         "quatarray.dask needs Dask; install the optional extra: pip install 'quatarray[dask]'"
@@ -108,22 +109,49 @@ def _public(name):
 
 
 class _Block:
-    """The per-block call of a public function (picklable by value: a name and constants)."""
+    """The per-block call of a public function (picklable by value: a name and constants).
 
-    def __init__(self, name, arrays, consts, nout):
+    With `located`, the first argument is the block's first index along the
+    leading axes, and a ``row k`` or ``index (i, j)`` in an error message is
+    turned from the block's numbering into the whole array's.
+    """
+
+    def __init__(self, name, arrays, consts, nout, located=False):
         self.name, self.arrays, self.consts, self.nout = name, tuple(arrays), dict(consts), nout
+        self.located = located
 
     def __call__(self, *blocks):
+        start = ()
+        if self.located:
+            start, blocks = blocks[0], blocks[1:]
         kwargs = dict(self.consts)
         kwargs.update(zip(self.arrays, blocks))
-        with _serial():
-            return _public(self.name)(**kwargs)
+        try:
+            with _serial():
+                return _public(self.name)(**kwargs)
+        except ValueError as exc:
+            if not any(start):
+                raise
+            raise ValueError(_renumber(str(exc), start)) from None
 
     def __dask_tokenize__(self):
-        return (type(self).__name__, self.name, self.arrays, sorted(self.consts.items(), key=str), self.nout)
+        return (type(self).__name__, self.name, self.arrays, sorted(self.consts.items(), key=str), self.nout,
+                self.located)
 
     def __repr__(self):
         return f"quatarray.{self.name}"
+
+
+def _renumber(msg, start):
+    """`msg` with the in-memory functions' ``row k`` / ``index (i, j, …)`` shifted by `start`."""
+    import re
+
+    if len(start) == 1:
+        return re.sub(r"\brow (\d+)", lambda m: f"row {int(m.group(1)) + start[0]}", msg)
+    return re.sub(
+        r"\bindex \(([\d, ]+)\)",
+        lambda m: f"index {tuple(int(k) + o for k, o in zip(m.group(1).split(','), start))}", msg,
+    )
 
 
 def _float_rule(dtypes):
@@ -223,17 +251,25 @@ def _elementwise(name, arrays, outs, rule=_float_rule):
             k = len(core)
             ind = out_lead[nlead - (x.ndim - k) :] + tuple(f"{pname}.{j}" for j in range(k))
             pairs += [x, ind]
-        call = _Block(name, names, given, len(outs))
+        call = _Block(name, names, given, len(outs), located=nlead > 0)
         token = tokenize(call, *xs)
+        if nlead:  # each block is told where it starts, for errors that name a row
+            chunkss, unified = da.core.unify_chunks(*pairs)
+            pairs[::2] = unified
+            lead_chunks = tuple(chunkss[i] for i in out_lead)
+            starts = [np.cumsum((0,) + c)[:-1].tolist() for c in lead_chunks]
+            where = {b: tuple(s[i] for s, i in zip(starts, b)) for b in np.ndindex(*map(len, lead_chunks))}
+            pairs = [ArrayValuesDep(lead_chunks, where), out_lead] + pairs
         metas = [np.empty((0,) * (nlead + len(c)), dtype) for c in outs]
         if len(outs) == 1:
             ocore = tuple(f"out.{j}" for j in range(len(outs[0])))
             return da.blockwise(
                 call, out_lead + ocore, *pairs, new_axes=dict(zip(ocore, outs[0])),
-                concatenate=True, meta=metas[0], name=f"{name}-{token}",
+                concatenate=True, meta=metas[0], name=f"{name}-{token}", align_arrays=False,
             )
         tmp = da.blockwise(
-            call, out_lead, *pairs, concatenate=True, meta=np.empty((0,) * nlead), name=f"{name}-tuple-{token}"
+            call, out_lead, *pairs, concatenate=True, meta=np.empty((0,) * nlead), name=f"{name}-tuple-{token}",
+            align_arrays=False,
         )
         return _leaves(tmp, f"{name}-{token}", outs, metas)
 

@@ -585,3 +585,20 @@ def test_resample_file_drop_zarr_equals_cli(client, npy_stream, capsys):
     got, chunks = _read_zarr(dst)
     assert chunks == (800, 4)
     np.testing.assert_allclose(got, np.load(ref), rtol=0, atol=1e-13)
+
+
+def test_errors_name_the_row_of_the_whole_array(client):
+    """A block's error names the row (or index) in the whole array, as in memory."""
+    m = qa.as_matrix(qa.random(1000, rng=0))
+    m[777] *= -1
+    for shape, chunks in (((1000, 3, 3), (100, 3, 3)), ((10, 100, 3, 3), (3, 40, 3, 3))):
+        with pytest.raises(ValueError) as memory:
+            qa.from_matrix(m.reshape(shape))
+        with pytest.raises(ValueError) as lazy:
+            run(client, qd.from_matrix(da.from_array(m.reshape(shape), chunks=chunks)))
+        assert str(lazy.value) == str(memory.value)
+        assert ("row 777" if len(shape) == 3 else "index (7, 77)") in str(lazy.value)
+    axis = np.ones((50, 3))
+    axis[33] = 0
+    with pytest.raises(ValueError, match=r"row 33 is \(0, 0, 0\)"):
+        run(client, qd.from_axis_angle(chunked(axis, 10), 0.5))
