@@ -43,7 +43,6 @@ True
 
 import contextlib
 import inspect
-import math
 import operator
 import os
 import sys

@@ -6,7 +6,6 @@ one row. Results must stay lazy until computed.
 """
 
 import importlib
-import operator
 
 import numpy as np
 import pytest

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import quatarray as qa
 from quatarray import io
 from quatarray.io import Chunk, Cleaner, DataError, UsageError
 

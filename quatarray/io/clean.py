@@ -10,7 +10,6 @@ is kept for the report.
 import numpy as np
 
 from .errors import DataError
-from .streams import Chunk
 
 
 class Cleaner:

@@ -24,6 +24,7 @@ in Python, to name the first bad line.
 """
 
 import os
+import weakref
 
 import numpy as np
 
@@ -98,9 +99,9 @@ def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DE
     if chunk < 1:
         raise UsageError(f"--chunk must be at least 1, got {chunk}")
     if is_zarr(path):
-        return ZarrReader(path, name, kind, layout, chunk)
+        return ZarrReader(path, name, kind, layout, chunk, on_invalid)
     if fmt == "npy":
-        return NpyReader(path, name, kind, layout, chunk)
+        return NpyReader(path, name, kind, layout, chunk, on_invalid)
     if fmt == "parquet":
         return ParquetReader(path, name, kind, chunk)
     if fmt == "bvh":
@@ -165,8 +166,9 @@ class NpyReader(Reader):
 
     format = "npy"
 
-    def __init__(self, path, name, kind, layout, chunk):
+    def __init__(self, path, name, kind, layout, chunk, on_invalid="error"):
         self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        self.bad_ok = on_invalid == "drop"  # a matrix that is no rotation becomes a nan row, dropped later
         self.layout = layout or "wxyz"
         try:
             with open(path, "rb") as f:
@@ -209,7 +211,7 @@ class NpyReader(Reader):
 
     def __iter__(self):
         for a in range(0, self.rows, self.chunk):
-            yield self.read(a, min(a + self.chunk, self.rows))
+            yield self.read(a, min(a + self.chunk, self.rows), self.bad_ok)
 
 
 class ZarrReader(NpyReader):
@@ -218,13 +220,14 @@ class ZarrReader(NpyReader):
 
     format = "zarr"
 
-    def __init__(self, path, name, kind, layout, chunk):
+    def __init__(self, path, name, kind, layout, chunk, on_invalid="error"):
         zarr = import_zarr(name)
         try:
             arr = zarr.open_array(path, mode="r")
         except Exception as exc:  # zarr raises several kinds for a folder that is no array
             raise DataError(f"{name}: not a zarr array ({type(exc).__name__}: {exc})") from None
         self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
+        self.bad_ok = on_invalid == "drop"
         self.dtype, self.shape, self.fortran = np.dtype(arr.dtype), tuple(arr.shape), False
         self.core, self.columns, self.layout = array_layout(name, kind, layout or "wxyz", self.shape, self.dtype)
         self.rows = self.shape[0]
@@ -464,7 +467,7 @@ class TextReader(Reader):
             types[self.t] = pa.int64()
         width = max(16, 12 * len(self.names))
         ro = pcsv.ReadOptions(
-            skip_rows=self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26))
+            skip_rows=self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26)),
         )
 
         def skip(row):
@@ -485,7 +488,9 @@ class TextReader(Reader):
         import pyarrow.csv as pcsv
 
         ro, po, co = self._options(strings=self.drop)
+        handler = weakref.ref(po.invalid_row_handler)
         row0 = 0
+        reader = failed = None
         try:
             reader = pcsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co)
             for batch in reader:
@@ -495,9 +500,16 @@ class TextReader(Reader):
                 row0 += batch.num_rows
                 yield ch
         except pa.ArrowInvalid as exc:
+            failed = str(exc).splitlines()[0]
+        finally:
+            if reader is not None:
+                reader.close()
+            reader = po = None
+            _released(handler)
+        if failed is not None:
             if self.drop:
-                raise DataError(f"{self.name}: {str(exc).splitlines()[0]}") from None
-            self._scan_for_error(exc)
+                raise DataError(f"{self.name}: {failed}")
+            self._scan_for_error(failed)
         if row0 == 0 and not self.skipped:
             raise F.empty(self.name)
 
@@ -531,7 +543,7 @@ class TextReader(Reader):
         return Chunk(data, t, pos, row0)
 
     def _scan_for_error(self, exc):
-        """pyarrow refused the file: find and name the first bad line."""
+        """pyarrow refused the file (its message `exc`): find and name the first bad line."""
         idx = {c: k for k, c in enumerate(self.names)}
         needed = self._needed()
         n = len(self.names)
@@ -548,7 +560,24 @@ class TextReader(Reader):
                 if not ok:
                     kind = "an integer" if self.ns_time and c == self.t else "a number"
                     raise DataError(f"{self.name}:{lineno}: not {kind}: {s!r} in column {c}")
-        raise DataError(f"{self.name}: {str(exc).splitlines()[0]}")
+        raise DataError(f"{self.name}: {exc}")
+
+
+def _released(ref, timeout=2.0):
+    """Wait until pyarrow's I/O threads have dropped the Python row handler `ref` points to.
+
+    After a failed read, pyarrow's read-ahead thread may hold the last
+    reference to the reader and free it (taking the GIL to release our
+    handler) a moment later; if the interpreter is exiting by then, that
+    thread is killed inside C++ and the process aborts ("terminate called
+    without an active exception"). Waiting here (a few ms at most) makes the
+    release happen while Python is alive.
+    """
+    import time
+
+    end = time.monotonic() + timeout
+    while ref() is not None and time.monotonic() < end:
+        time.sleep(0.001)
 
 
 def _ns_to_s(ns):
