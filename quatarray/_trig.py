@@ -4,12 +4,28 @@ libm's ``sin`` and ``atan2`` are opaque calls, so a loop that uses them runs
 one element at a time. These are branch-free polynomial versions (every
 choice is a select), which LLVM turns into SIMD code when they sit inside a
 row loop. Accuracy in float64: within about one ulp of the correctly rounded
-result (the fdlibm kernels, tested in ``tests/test_interpolation.py``).
+result (the fdlibm kernels, tested in ``tests/test_trig.py``).
 
 ``sincos(x)``
-    (sin x, cos x) for any finite x; Cody–Waite reduction by π/2 with a
-    three-part constant, exact for |x| < 2²⁰·π/2 (beyond that the reduction
-    slowly loses accuracy). inf and nan give nan.
+    (sin x, cos x); Cody–Waite reduction x − k·π/2 with π/2 split into
+    pieces (below), then the fdlibm polynomials on [−π/4, π/4]. inf and nan
+    give nan. Accurate range (:func:`sincos_limit`):
+
+    - float64: |x| ≤ 10⁶, within 2 ulp of sin and cos, also next to the
+      multiples of π/2 where the result is tiny (down to ~10⁻¹⁸): fdlibm's
+      three 33-bit pieces ``pio2_1..3`` (k·piece exact for |k| < 2²⁰) and
+      the tail ``pio2_3t``.
+    - float32: |x| ≤ 2¹⁵ = 32768, within 2.5 ulp of the float64 sin and cos
+      of the float32 argument (measured on every float32 of the range:
+      2.44 ulp; 0.75 ulp on [−π/4, π/4]), also next to the multiples of π/2
+      (the closest float32 is 4·10⁻⁹ away, at 161·π/2). π/2 is split into
+      float32 pieces of 8, 9, 9 and 24 significant bits (Cephes ``sinf``
+      style, finer): k·piece is exact for the first three while |k| < 2¹⁵,
+      and the remainder comes out within 0.8 ulp.
+
+    Beyond the range the reduction loses accuracy (for float32 quickly:
+    k·piece is no longer exact); callers that may meet such arguments
+    check :func:`sincos_limit` and fall back to libm.
 ``half_arc(a, b)``
     atan2(a, b) for a, b ≥ 0 (a result in [0, π/2]); used for the half
     angle of an arc from the chord lengths |p − q| and |p + q|.
@@ -18,7 +34,8 @@ result (the fdlibm kernels, tested in ``tests/test_interpolation.py``).
     nan out; ``atan2(±inf, ±inf)`` gives nan); within 2 ulp in float64.
 ``sincos_limit(x)``
     The largest |x| for which ``sincos`` is accurate to the rounding of x's
-    float type (callers with larger arguments fall back to libm).
+    float type: 10⁶ for float64, 32768 for float32 (callers with larger
+    arguments fall back to libm).
 
 Constants go through :func:`quatarray._jit.like`, so float32 stays float32
 (the float32 results are then accurate to float32 rounding; for ``sincos``
@@ -45,11 +62,22 @@ C4 = -2.75573143513906633035e-07
 C5 = 2.08757232129817482790e-09
 C6 = -1.13596475577881948265e-11
 
-# π/2 in three 33-bit pieces (fdlibm pio2_1, pio2_2, pio2_3) and 2/π
+# π/2 in three 33-bit pieces and a 53-bit tail (fdlibm pio2_1, pio2_2, pio2_3,
+# pio2_3t) and 2/π
 PIO2_1 = 1.57079632673412561417e00
 PIO2_2 = 6.07710050630396597660e-11
 PIO2_3 = 2.02226624871116645580e-21
+PIO2_4 = 8.47842766036889956997e-32
 INVPIO2 = 6.36619772367581382433e-01
+
+# π/2 for float32 in pieces of 8, 9, 9 and 24 significant bits (π/2 truncated
+# to 10 bits three times over, the zero bits skipped, then the rest rounded):
+# k·PIO2F_1..3 are exact in float32 for |k| < 2¹⁵, and the four together
+# carry π/2 to about 2⁻⁵⁸ (relative).
+PIO2F_1 = 1.5703125
+PIO2F_2 = 4.8351287841796875e-04
+PIO2F_3 = 3.1385570764541626e-07
+PIO2F_4 = 6.07710062827671e-11
 
 # fdlibm atan on |x| < 7/16
 AT0 = 3.33333333333329318027e-01
@@ -69,17 +97,53 @@ PIO4_LO = 3.06161699786838301793e-17  # fdlibm atanlo[3]
 TAN_PI8 = 0.41421356237309503
 
 
+def reduce_pio2(x, k):
+    """x − k·π/2 (Cody–Waite): three pieces of π/2 in float64, four in float32.
+
+    Plain Python version (``NUMBA_DISABLE_JIT=1``); compiled code gets the
+    overload below, which picks the pieces by x's type at compile time.
+    """
+    if isinstance(x, np.float32):
+        f = np.float32
+        return (((x - k * f(PIO2F_1)) - k * f(PIO2F_2)) - k * f(PIO2F_3)) - k * f(PIO2F_4)
+    return (((x - k * PIO2_1) - k * PIO2_2) - k * PIO2_3) - k * PIO2_4
+
+
+@overload(reduce_pio2, inline="always", jit_options={"cache": CACHE})
+def _reduce_pio2(x, k):
+    if isinstance(x, types.Float) and x.bitwidth == 32:
+        p1, p2, p3, p4 = (np.float32(c) for c in (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4))
+
+        def impl32(x, k):
+            r = x - k * p1  # exact (Sterbenz) for |k| < 2¹⁵
+            r = r - k * p2  # k·p2, k·p3 exact; the differences exact when they cancel
+            r = r - k * p3
+            return r - k * p4
+
+        return impl32
+    if isinstance(x, types.Float):
+        p1, p2, p3, p4 = (np.float64(c) for c in (PIO2_1, PIO2_2, PIO2_3, PIO2_4))
+
+        def impl64(x, k):
+            r = x - k * p1  # exact for |k| < 2²⁰, as are k·p2, k·p3
+            r = r - k * p2
+            r = r - k * p3
+            return r - k * p4  # matters only within ~1e-9 of a multiple of π/2
+
+        return impl64
+
+
 @inline
 def sincos(x):
-    """(sin x, cos x), branch-free."""
-    k = np.rint(x * like(x, INVPIO2))
-    r = x - k * like(x, PIO2_1)
-    r = r - k * like(x, PIO2_2)
-    r = r - k * like(x, PIO2_3)
+    """(sin x, cos x), branch-free; accurate for |x| ≤ :func:`sincos_limit`."""
+    # + 0 turns k = −0 into +0, so that x − k·π/2 keeps the sign of x = −0
+    k = np.rint(x * like(x, INVPIO2)) + like(x, 0.0)
+    r = reduce_pio2(x, k)
     z = r * r
     # sin(r) = r + r z (S1 + z P), cos(r) = 1 - z/2 + z² Q (fdlibm's split keeps it exact)
     ps = like(x, S2) + z * (like(x, S3) + z * (like(x, S4) + z * (like(x, S5) + z * like(x, S6))))
-    s = r + r * z * (like(x, S1) + z * ps)
+    # copysign: the same value (|sin r − r| < |r|), and sin(−0) = −0
+    s = np.copysign(r + r * z * (like(x, S1) + z * ps), r)
     pc = z * (like(x, C1) + z * (like(x, C2) + z * (like(x, C3) + z * (like(x, C4) + z * (like(x, C5) + z * like(x, C6))))))
     hz = like(x, 0.5) * z
     w = like(x, 1.0) - hz
@@ -159,11 +223,12 @@ def atan2(y, x):
     return np.copysign(k * like(x, PIO4_HI) + (s * r + k * like(x, PIO4_LO)), y)
 
 
-# sincos's reduction is exact for |k| < 2**20 in float64. In float32 the
-# float64 pieces of π/2 round to float32 and the reduction loses about
-# 4e-8·|k| (absolute), so float32 is trusted only for small |x|.
+# sincos's reduction is exact for |k| < 2**20 in float64 and |k| < 2**15 in
+# float32 (|x| < 2**15·π/2); the limits leave a margin and are round numbers.
+# Measured: float32 within 2.44 ulp on every float32 with |x| ≤ 2**15,
+# float64 within 1 ulp next to the multiples of π/2 (tests/test_trig.py).
 SINCOS_LIMIT_64 = 1.0e6
-SINCOS_LIMIT_32 = 4.0
+SINCOS_LIMIT_32 = 32768.0
 
 
 def sincos_limit(x):

@@ -346,6 +346,6 @@ def from_euler(seq, angles, degrees=False):
     far = np.empty(flat.shape[0], np.bool_)
     args = (flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out, far)
     _from_euler(*args)
-    if far.any():  # rare: angles beyond ±2·10⁶ rad (float32: ±8) or inf
+    if far.any():  # rare: angles beyond ±2·10⁶ rad (float32: ±65536 rad) or inf
         _from_euler_far(*args)
     return out.reshape(a.shape[:-1] + (4,))
