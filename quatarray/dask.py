@@ -47,6 +47,7 @@ import operator
 import os
 import sys
 import threading
+import uuid
 
 import numpy as np
 
@@ -569,6 +570,26 @@ def local_cluster(n_workers=2, **kwargs):
         return LocalCluster(**options)
 
 
+def _compute_all(tasks, opts):
+    """``dask.compute(*tasks)`` on the scheduler of `opts`, as a list, letting every task
+    finish (or fail) before the first error is raised: no task may still be writing
+    into an output that is being removed."""
+    sched = opts["scheduler"]
+    if not isinstance(sched, str):  # a distributed Client
+        from distributed import wait
+
+        futures = sched.compute(list(tasks))
+        wait(futures)
+        return sched.gather(futures)  # raises the first task's error
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(os.cpu_count() or 1)
+    try:
+        return list(dask.compute(*tasks, scheduler=sched, pool=pool))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _usage(msg):
     from .io.errors import UsageError
 
@@ -735,7 +756,7 @@ def _plan_rows(reader, chunk, drop, opts):
     blocks = _blocks(reader.rows, chunk)
     if not drop:
         return [(a, b, a) for a, b in blocks], np.empty(0, np.int64)
-    found = dask.compute(*[dask.delayed(_bad_rows_task, pure=False)(reader, a, b) for a, b in blocks], **opts)
+    found = _compute_all([dask.delayed(_bad_rows_task, pure=False)(reader, a, b) for a, b in blocks], opts)
     bad = np.concatenate(found) if found else np.empty(0, np.int64)
     kept = reader.rows - bad.size
     if kept == 0:
@@ -846,7 +867,7 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
         with _open_target(dst, (reader.rows - bad.size,) + tuple(core), dtype, chunk) as target:
             tasks = [dask.delayed(_convert_task, pure=False)(reader, a, b, o, to, degrees, target, drop)
                      for a, b, o in plan]
-            figures = dask.compute(*tasks, **opts)
+            figures = _compute_all(tasks, opts)
     _report(reader, figures, bad.size, err)
     lock = sum(f[2] for f in figures)
     if lock:
@@ -935,7 +956,9 @@ def _plan_times(times, new_times, k):
         t = (t_raw - t_raw[0]).astype(np.float64)
         nt = (new_times.astype(np.int64) - np.int64(t_raw[0])).astype(np.float64)
     else:
-        t, nt = t_raw.astype(np.float64), new_times.astype(np.float64)
+        t, nt = t_raw.astype(np.float64, copy=False), new_times.astype(np.float64, copy=False)
+    if nt.size and t[0] <= nt.min() and nt.max() <= t[-1]:  # min and max are nan when any time is
+        return t, nt
     bad = ~((nt >= t[0]) & (nt <= t[-1]))
     if bad.any():
         i = int(np.argmax(bad))
@@ -1023,7 +1046,9 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     dtype = as_float(np.empty(0, x.dtype), "keys").dtype
     x = x.astype(dtype)
     sizes = _output_chunks(nt, t, x.chunks[0], chunks, given)
-    token = tokenize("spline", t_raw, x, nt_raw, method, sizes)
+    # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
+    # building the graph, and two calls then never share results
+    token = uuid.uuid4().hex
     name, sname, fname = (f"spline{p}-{token}" for p in ("", "-summary", "-flips"))
     dsk = {(sname, i): (_flip_summary, (x.name, i, 0)) for i in range(x.numblocks[0])}
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
@@ -1205,5 +1230,5 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
         except ValueError as exc:
             raise DataError(f"{reader.name}: {exc}") from None
         with _open_target(dst, lazy.shape, lazy.dtype, chunk) as target:
-            dask.compute(_store(lazy, target).sum(), **opts)
+            _compute_all([_store(lazy, target).sum()], opts)
     return 0

@@ -601,3 +601,42 @@ def test_errors_name_the_row_of_the_whole_array(client):
     axis[33] = 0
     with pytest.raises(ValueError, match=r"row 33 is \(0, 0, 0\)"):
         run(client, qd.from_axis_angle(chunked(axis, 10), 0.5))
+
+
+@pytest.mark.parametrize("out", ["npy", "zarr"])
+def test_failed_run_waits_for_every_task(npy_stream, out, monkeypatch):
+    """The first error is raised only after every other task has finished, so none of them
+    writes into the temporary output after it was removed (threads: the writes are slowed
+    down in this process)."""
+    import threading
+    import time
+
+    from quatarray.io.errors import DataError
+
+    if out == "zarr":
+        pytest.importorskip("zarr")
+    q = np.load(npy_stream / "q.npy")
+    q[150] = np.nan
+    np.save(npy_stream / "early.npy", q)
+    target = qd._ZarrTarget if out == "zarr" else qd._NpyTarget
+    events, lock = [], threading.Lock()
+    write, leave = target.write, target.__exit__
+
+    def slow_write(self, row0, data):
+        time.sleep(0.05)
+        with lock:
+            events.append("write")
+        return write(self, row0, data)
+
+    def logged_exit(self, *exc):
+        with lock:
+            events.append("cleanup")
+        return leave(self, *exc)
+
+    monkeypatch.setattr(target, "write", slow_write)
+    monkeypatch.setattr(target, "__exit__", logged_exit)
+    with pytest.raises(DataError, match="row 150"):
+        qd.convert_file(npy_stream / "early.npy", npy_stream / f"gone.{out}", "matrix", chunk=500, scheduler=None)
+    time.sleep(0.3)  # a task still running would write now
+    assert events[-1] == "cleanup" and "write" in events  # tasks finished (or were never started) first
+    assert not [p.name for p in npy_stream.iterdir() if "gone" in p.name]

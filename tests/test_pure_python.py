@@ -18,6 +18,7 @@ MODULES = [
     "test_rotation.py",
     "test_conversions.py",
     "test_euler.py",
+    "test_trig.py",
     "test_interpolation.py",
     "test_transforms.py",
 ]
