@@ -16,8 +16,8 @@ overhead = time(1 worker) / time(in memory, 1 thread).
 Workloads: ``convert`` of a 10⁷-row ``.npy`` file to Euler angles (file to
 file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
 ``spline`` through 10⁵ unevenly timed keys (chunked keys in, the lazy result
-computed into memory), with the keys in 4 blocks (Dask's advice: tasks of
-100 ms or so; here ~30 ms each) and in 20 small blocks.
+computed on the workers), with the keys in 4 blocks (Dask's advice: tasks of
+100 ms or so; here ~30 ms each) and in 20 small blocks; see ``SPLINE_CASES``.
 """
 
 import numpy as np
@@ -35,7 +35,6 @@ from quatarray import _jit  # noqa: E402
 N_CONVERT = 10_000_000
 CHUNK_CONVERT = 500_000
 N_KEYS, N_SAMPLES = 100_000, 1_000_000
-CHUNK_KEYS = (25_000, 5_000)  # 4 key blocks (tasks of ~30 ms), and 20 small ones
 
 
 @pytest.fixture(scope="module", params=[1, 2], ids=["1worker", "2workers"])
@@ -122,34 +121,40 @@ def test_spline_inmemory_2threads(benchmark, stream):
     benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
 
 
+SPLINE_CASES = [  # (keys per block, new times, result)
+    (25_000, "dask", "persisted"),
+    (25_000, "numpy", "persisted"),
+    (25_000, "dask", "gathered"),
+    (5_000, "dask", "persisted"),
+]
+
+
 @pytest.mark.benchmark(group="dask-spline-1e6-samples")
-@pytest.mark.parametrize("result", ["gathered", "persisted"])
-@pytest.mark.parametrize("chunk", CHUNK_KEYS, ids=[f"keys-chunk{c}" for c in CHUNK_KEYS])
-def test_spline_dask(benchmark, stream, client, chunk, result):
-    """``gathered``: the 32 MB result comes back to this process (``compute``: concatenated on
-    a worker, then sent); ``persisted``: it stays in the workers' memory (``persist``), as
-    a cluster keeps what it will store or process further."""
-    t, keys, nt = stream
-    keys_d = client.persist(da.from_array(keys, chunks=(chunk, 4)))  # keys already on the workers
+@pytest.mark.parametrize("chunk,new_times,result", SPLINE_CASES,
+                         ids=[f"keys{c}-nt_{n}-{r}" for c, n, r in SPLINE_CASES])
+def test_spline_dask(benchmark, stream, client, chunk, new_times, result):
+    """Keys persisted on the workers in blocks of `chunk`. New times ``dask``: also
+    persisted on the workers, in as many blocks as the keys; ``numpy``: an in-memory
+    array whose slices travel in the graph. Result ``persisted``: kept in the
+    workers' memory (``persist``), as a cluster keeps what it stores or processes further;
+    ``gathered``: the 32 MB result comes back to this process (``compute``)."""
+    t, keys, _ = stream
+    keys_d = client.persist(da.from_array(keys, chunks=(chunk, 4)))
     distributed.wait(keys_d)
+    nt = stream[2]
+    times = nt
+    if new_times == "dask":
+        times = client.persist(da.from_array(nt, chunks=N_SAMPLES * chunk // N_KEYS))
+        distributed.wait(times)
 
-    rounds = iter(range(1, 100))
-
-    def fresh():
-        # new times that differ in their first value only: new task keys every round, so a
-        # persisted result of the round before is never reused
-        mine = nt.copy()
-        mine[0] += 1e-9 * next(rounds)
-        return (mine,), {}
-
-    def run(new_times):
-        lazy = qd.spline(t, keys_d, new_times)
+    def run():
+        lazy = qd.spline(t, keys_d, times)  # a fresh graph (and fresh names) every round
         if result == "gathered":
             return client.compute(lazy, sync=True)
         kept = client.persist(lazy)
         distributed.wait(kept)
         return kept
 
-    got = benchmark.pedantic(run, setup=fresh, rounds=5, warmup_rounds=1)
+    got = benchmark.pedantic(run, rounds=5, warmup_rounds=1)
     got = got if result == "gathered" else got.compute()
-    np.testing.assert_allclose(got[1:], qa.spline(t, keys, nt[1:]), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(got, qa.spline(t, keys, nt), rtol=0, atol=1e-13)

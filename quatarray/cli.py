@@ -159,7 +159,8 @@ class _RateTimes:
         self.t0 = None
         self.k = 0
 
-    def upto(self, b, closed):
+    def end(self, b, closed):
+        """The count of new times up to `b` (the next index not handed out)."""
         t0, r = self.t0, self.rate
         kb = max(self.k, int(np.ceil((b - t0) * r)) - 1)
         inside = (lambda k: t0 + k / r <= b) if closed else (lambda k: t0 + k / r < b)
@@ -167,9 +168,13 @@ class _RateTimes:
             kb += 1
         while kb > self.k and not inside(kb - 1):
             kb -= 1
+        return kb
+
+    def upto(self, b, closed):
+        kb = self.end(b, closed)
         ks = np.arange(self.k, kb, dtype=np.float64)
         self.k = kb
-        return t0 + ks / r
+        return self.t0 + ks / self.rate
 
     def finish(self, last):
         pass

@@ -947,28 +947,6 @@ def _spline_task(times, keys, flip0, new_times, method):
         return qa.spline(times, keys, new_times, method=method)
 
 
-def _plan_times(times, new_times, k):
-    """Float times for planning, checked with the in-memory messages (integer stamps stay exact)."""
-    from .interpolation import _times
-
-    t_raw = _times(times, k)
-    if t_raw.dtype.kind in "biu" and new_times.dtype.kind in "biu":
-        t = (t_raw - t_raw[0]).astype(np.float64)
-        nt = (new_times.astype(np.int64) - np.int64(t_raw[0])).astype(np.float64)
-    else:
-        t, nt = t_raw.astype(np.float64, copy=False), new_times.astype(np.float64, copy=False)
-    if nt.size and t[0] <= nt.min() and nt.max() <= t[-1]:  # min and max are nan when any time is
-        return t, nt
-    bad = ~((nt >= t[0]) & (nt <= t[-1]))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"Expected `new_times` within [{t_raw[0]!r}, {t_raw[-1]!r}] (the key times), "
-            f"got {new_times[i]!r} at flat index {i}."
-        )
-    return t, nt
-
-
 def _output_chunks(nt, t, key_chunks, chunks, given):
     """Row boundaries of the output blocks."""
     m = nt.shape[0]
@@ -1000,20 +978,24 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     sign of its first key. So the result equals the in-memory one (to
     rounding) whatever the chunking, in ``2·blocks + 1`` tasks.
 
-    `times` and `new_times` are the plan: 1-D, small next to the keys, and
-    read when this function is called (Dask arrays are computed for them).
-    Their errors (times not strictly increasing, new times outside the keys'
-    span) are raised here.
+    `times` (1-D, one per key) is read when this function is called, and
+    so is `new_times` when it is a numpy array: its slices travel in the
+    graph. A Dask array of new times (``da.linspace``, ``t0 + da.arange(n)
+    / rate``, or a persisted array) stays on the workers: a first small
+    pass finds each block's earliest and latest time, and its blocks are
+    generated or read where they are interpolated. Either way, new times
+    outside the keys' span raise here, with the in-memory message.
 
     Parameters
     ----------
     times : array_like, shape (K,)
     keys : Dask array or array_like, shape (K, 4)
-    new_times : array_like, shape (M,)
+    new_times : array_like or Dask array, shape (M,)
     method : {"bezier", "slerp", "nlerp", "squad"}
     chunks : int, optional
         Rows per output block. Default: the chunks of `new_times` when it is
-        a Dask array, else one output block per key block.
+        a Dask array, else one output block per key block (for sorted new
+        times).
 
     Returns
     -------
@@ -1029,45 +1011,87 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     >>> np.allclose(lazy.compute(), qa.spline(t, keys, nt), rtol=0, atol=1e-13)
     True
     """
-    from .interpolation import _SPLINE
+    from .interpolation import _SPLINE, _plan_times, _times
 
     if method not in _SPLINE:
         raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
-    given = new_times.chunks[0] if isinstance(new_times, da.Array) else None
-    t_raw = _materialise(times, "times")
-    nt_raw = _materialise(new_times, "new_times")
     x = as_dask(keys, "keys", Q)
     if x.ndim != 2:
         raise ValueError(f"Expected `keys` to have shape (K, 4), got {tuple(x.shape)}.")
     k = x.shape[0]
     if k < 2:
         raise ValueError(f"Expected `keys` to hold at least 2 keys, got {k}.")
-    t, nt = _plan_times(t_raw, nt_raw, k)
+    t_raw = _times(_materialise(times, "times"), k)
     dtype = as_float(np.empty(0, x.dtype), "keys").dtype
     x = x.astype(dtype)
-    sizes = _output_chunks(nt, t, x.chunks[0], chunks, given)
+    if isinstance(new_times, da.Array):
+        parts, sizes, spans, t, deps = _lazy_new_times(t_raw, new_times, k, chunks)
+    else:
+        nt_raw = _materialise(new_times, "new_times")
+        t, nt = _plan_times(t_raw, nt_raw)
+        sizes = _output_chunks(nt, t, x.chunks[0], chunks, None)
+        edges = np.cumsum([0] + sizes)
+        parts = [nt_raw[a:b] for a, b in zip(edges[:-1], edges[1:])]
+        spans = [(nt[a:b].min(), nt[a:b].max()) if b > a else None for a, b in zip(edges[:-1], edges[1:])]
+        deps = []
     # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
     # building the graph, and two calls then never share results
     token = uuid.uuid4().hex
     name, sname, fname = (f"spline{p}-{token}" for p in ("", "-summary", "-flips"))
     dsk = {(sname, i): (_flip_summary, (x.name, i, 0)) for i in range(x.numblocks[0])}
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
-    firsts, a = [], 0
-    for j, n in enumerate(sizes):
-        part = nt[a : a + n]
-        if n == 0:
+    firsts = []
+    for j, (part, span) in enumerate(zip(parts, spans)):
+        if span is None:
             dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
             continue
         # the segments of the block's earliest and latest new times bound all of its segments
-        seg = np.clip(np.searchsorted(t, [part.min(), part.max()], side="right") - 1, 0, k - 2)
+        seg = np.clip(np.searchsorted(t, span, side="right") - 1, 0, k - 2)
         w0, w1 = max(0, int(seg[0]) - 1), min(k, int(seg[1]) + 3)
         flip = (operator.getitem, fname, len(firsts))
-        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, nt_raw[a : a + n], method)
+        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, part, method)
         firsts.append(w0)
-        a += n
     dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
-    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x])
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
+
+
+def _span_task(block, t_ends, start):
+    """The earliest and latest of a block of new times (None when it is empty), or the
+    in-memory ValueError for its first time outside the keys' span (returned, so that
+    the first block's error is the one raised)."""
+    from .interpolation import _plan_times
+
+    try:
+        _plan_times(t_ends, block, start)
+    except ValueError as exc:
+        return exc
+    return (block.min(), block.max()) if block.size else None
+
+
+def _lazy_new_times(t_raw, new_times, k, chunks):
+    """Output blocks for a Dask array of new times: one per block of it, each
+    interpolating that block where it lives; the blocks' spans come from one
+    small pass (which raises the in-memory message for a time outside the keys')."""
+    from .interpolation import _plan_times
+
+    nt_d = new_times if chunks is None else new_times.rechunk(int(chunks))
+    if nt_d.ndim != 1:
+        raise ValueError(f"Expected `new_times` to have shape (N,), got {tuple(nt_d.shape)}.")
+    if nt_d.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_d.dtype}.")
+    starts = np.cumsum((0,) + nt_d.chunks[0])[:-1]
+    t_ends = t_raw[[0, -1]]
+    found = dask.compute(*[
+        dask.delayed(_span_task, pure=True)(b, t_ends, int(a)) for b, a in zip(nt_d.to_delayed().ravel(), starts)
+    ])
+    for f in found:
+        if isinstance(f, ValueError):
+            raise f
+    t = _plan_times(t_raw, np.empty(0, nt_d.dtype))[0]
+    spans = [None if f is None else tuple(_plan_times(t_raw, np.array(f, nt_d.dtype))[1]) for f in found]
+    parts = [(nt_d.name, j) for j in range(nt_d.numblocks[0])]
+    return parts, list(nt_d.chunks[0]), spans, t, [nt_d]
 
 
 def _angular_velocity_task(q, times, frame, lo, hi):
@@ -1221,12 +1245,17 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
         if t.shape[0] < 2:
             raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
         newt.t0 = float(t[0])
-        nt = newt.upto(float(t[-1]), True)
-        newt.finish(float(t[-1]))
+        if rate is not None:  # t0 + k / rate, made by the workers block by block (as upto() would)
+            n = newt.end(float(t[-1]), True)
+            nt = newt.t0 + da.arange(0, n, chunks=int(chunk), dtype=np.float64) / newt.rate
+        else:
+            nt = newt.upto(float(t[-1]), True)
+            newt.finish(float(t[-1]))
         if nt.size == 0:
             raise DataError(f"{reader.name}: no new times inside the keys' span")
         try:
-            lazy = spline(t, keys, nt, method=method, chunks=chunk)
+            with dask.config.set(scheduler=opts["scheduler"]):  # spline's pass over lazy new times
+                lazy = spline(t, keys, nt, method=method, chunks=chunk)
         except ValueError as exc:
             raise DataError(f"{reader.name}: {exc}") from None
         with _open_target(dst, lazy.shape, lazy.dtype, chunk) as target:

@@ -925,6 +925,30 @@ def _n_outside(lo, hi, x):
 _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
 
 
+def _plan_times(t_raw, nt_raw, index0=0):
+    """Key times and new times as float64 for the segment search — relative to
+    ``t_raw[0]`` when both are integers (exact for ns stamps since the epoch) —
+    or the ValueError naming the first new time outside the keys' span (its
+    flat index counted from `index0`)."""
+    if nt_raw.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
+    if t_raw.dtype.kind in "biu" and nt_raw.dtype.kind in "biu":
+        origin = t_raw[0]
+        t = (t_raw - origin).astype(np.float64)
+        nt = (nt_raw.astype(np.int64) - np.int64(origin)).astype(np.float64)
+    else:
+        t = t_raw.astype(np.float64)
+        nt = np.asarray(nt_raw, np.float64)
+    flat_nt = np.ascontiguousarray(nt.reshape(-1))
+    if _n_outside(t[0], t[-1], flat_nt):
+        i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))
+        raise ValueError(
+            f"Expected `new_times` within [{t_raw[0].item()}, {t_raw[-1].item()}] (the key times), "
+            f"got {nt_raw.reshape(-1)[i].item()} at flat index {index0 + i}."
+        )
+    return t, nt
+
+
 def spline(times, keys, new_times, method="bezier"):
     """Resample a timestamped key stream at `new_times`.
 
@@ -975,23 +999,8 @@ def spline(times, keys, new_times, method="bezier"):
     k = q.shape[0]
     t_raw = _times(times, k)
     nt_raw = np.asarray(new_times)
-    if nt_raw.dtype.kind not in "biuf":
-        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
-    # relative to times[0]: exact for integer stamps (ns since the epoch)
-    if t_raw.dtype.kind in "biu" and nt_raw.dtype.kind in "biu":
-        origin = t_raw[0]
-        t = (t_raw - origin).astype(np.float64)
-        nt = (nt_raw.astype(np.int64) - np.int64(origin)).astype(np.float64)
-    else:
-        t = t_raw.astype(np.float64)
-        nt = np.asarray(nt_raw, np.float64)
+    t, nt = _plan_times(t_raw, nt_raw)
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
-    if _n_outside(t[0], t[-1], flat_nt):
-        i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))
-        raise ValueError(
-            f"Expected `new_times` within [{t_raw[0].item()}, {t_raw[-1].item()}] (the key times), "
-            f"got {nt_raw.reshape(-1)[i].item()} at flat index {i}."
-        )
 
     from .algebra import normalize
 

@@ -387,6 +387,34 @@ def test_spline_integer_stamps_and_errors():
 
 
 @needs("interpolation")
+def test_spline_lazy_new_times(client):
+    """New times as a Dask array stay on the workers: one output block per block of them,
+    equal to in memory; the first block with a time outside the keys' span is named."""
+    t, keys = keyed(50, seed=6)
+    rng = np.random.default_rng(6)
+    nt = np.sort(rng.uniform(t[0], t[-1], 700))
+    expect = qa.spline(t, keys, nt)
+    for chunks in ((100,) * 7, (0, 350, 0, 349, 1)):  # empty blocks too
+        nt_d = da.from_array(nt, chunks=(chunks,))
+        lazy = qd.spline(t, chunked(keys, 9), nt_d)
+        assert lazy.chunks[0] == chunks
+        np.testing.assert_allclose(run(client, lazy), expect, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(run(client, qd.spline(t, keys, da.from_array(nt[::-1], chunks=90))), expect[::-1],
+                               rtol=0, atol=1e-13)  # unsorted, numpy keys
+    bad = nt.copy()
+    bad[[250, 610]] = t[-1] + 1, np.nan
+    with pytest.raises(ValueError) as memory:
+        qa.spline(t, keys, bad)
+    with pytest.raises(ValueError) as lazy_error:
+        qd.spline(t, chunked(keys, 9), da.from_array(bad, chunks=100))
+    assert str(lazy_error.value) == str(memory.value) and "flat index 250" in str(memory.value)
+    ti = 1_600_000_000_000_000_000 + np.arange(30, dtype=np.int64) * 10_000_000  # ns since the epoch
+    nti = ti[0] + np.arange(0, 290_000_000, 1_000_000, dtype=np.int64)
+    got = run(client, qd.spline(ti, chunked(keyed(30, seed=7)[1], 4), da.from_array(nti, chunks=50)))
+    np.testing.assert_allclose(got, qa.spline(ti, keyed(30, seed=7)[1], nti), rtol=0, atol=1e-13)
+
+
+@needs("interpolation")
 def test_spline_stays_lazy_in_the_keys():
     t = np.arange(100.0)
     lazy = qd.spline(t, exploding((100, 4), 10), np.linspace(0, 99, 1000))
