@@ -396,7 +396,7 @@ def test_angular_velocity_constant_rate_uneven_times(rng):
 
 
 def _euroc(data_dir):
-    a = np.loadtxt(data_dir / "euroc_v102_groundtruth.csv", delimiter=",", comments="#", max_rows=3000)
+    a = np.loadtxt(data_dir / "euroc_v102_groundtruth.csv", delimiter=",", skiprows=1, max_rows=3000)  # a "#timestamp" header
     return (a[:, 0] - a[0, 0]) * 1e-9, a[:, 4:8]
 
 
