@@ -48,6 +48,7 @@ import os
 import sys
 import threading
 import uuid
+import warnings
 
 import numpy as np
 
@@ -563,31 +564,39 @@ def local_cluster(n_workers=2, **kwargs):
     """
     from distributed import LocalCluster
 
+    import logging
+
+    # the workers' own log lines (a failed task's traceback) stay out of the command line's
+    # stderr: the error reaches the caller as an exception
     options = dict(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                   dashboard_address=None)
+                   dashboard_address=None, silence_logs=logging.CRITICAL)
     options.update(kwargs)
-    with dask.config.set(_cluster_config()):
+    with dask.config.set(_cluster_config()), warnings.catch_warnings():
+        # its HTTP endpoint takes another port when 8787 is taken (another cluster): not news
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
         return LocalCluster(**options)
 
 
 def _compute_all(tasks, opts):
-    """``dask.compute(*tasks)`` on the scheduler of `opts`, as a list, letting every task
-    finish (or fail) before the first error is raised: no task may still be writing
-    into an output that is being removed."""
+    """``dask.compute(*tasks)`` on the scheduler of `opts`, as a list. Every task
+    finishes (or fails) before an error is raised — none may still be writing into an
+    output that is being removed — and the error raised is that of the earliest task
+    in `tasks` (the first bad row of the file, as in memory)."""
     sched = opts["scheduler"]
-    if not isinstance(sched, str):  # a distributed Client
-        from distributed import wait
-
+    if not isinstance(sched, str):  # a distributed Client (not necessarily the default one)
         futures = sched.compute(list(tasks))
-        wait(futures)
-        return sched.gather(futures)  # raises the first task's error
-    from concurrent.futures import ThreadPoolExecutor
+        results = lambda: sched.gather(futures)  # noqa: E731
+    else:
+        from concurrent.futures import ThreadPoolExecutor
 
-    pool = ThreadPoolExecutor(os.cpu_count() or 1)
-    try:
-        return list(dask.compute(*tasks, scheduler=sched, pool=pool))
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+            futures = [pool.submit(dask.compute, t, scheduler="sync") for t in tasks]
+        results = lambda: [f.result()[0] for f in futures]  # noqa: E731
+    for f in futures:
+        error = f.exception()  # waits for it
+        if error is not None:
+            raise error
+    return results()
 
 
 def _usage(msg):
@@ -795,7 +804,6 @@ def _convert_task(reader, a, b, row0, to, degrees, target, drop):
     is checked and converted while it is in cache, into a reused buffer
     written with one call. Returns the report figures.
     """
-    import warnings
 
     from .cli import _PIECE, _target
     from .io.clean import Cleaner

@@ -589,6 +589,11 @@ def test_convert_file_bad_row_named_in_a_later_block(client, npy_stream):
     src = _zarr_store(npy_stream / "zero.zarr", q, rows=500)
     with pytest.raises(DataError, match=r"zero\.zarr: row 4321: zero quaternion"):
         qd.convert_file(src, npy_stream / "never.zarr", "quat", chunk=1000, scheduler=client)
+    q[2500] = np.inf  # two bad rows: the first is named, whichever task fails first
+    src = _zarr_store(npy_stream / "two.zarr", q, rows=500)
+    for scheduler in (client, None):
+        with pytest.raises(DataError, match=r"two\.zarr: row 2500: quaternion is not finite"):
+            qd.convert_file(src, npy_stream / "never.npy", "quat", chunk=1000, scheduler=scheduler)
     assert not [p for p in npy_stream.iterdir() if "never" in p.name]
     every = _zarr_store(npy_stream / "nan.zarr", np.full((10, 4), np.nan), rows=3)
     with pytest.raises(DataError, match=r"nan\.zarr: no valid rows \(all 10 dropped\)"):
@@ -668,3 +673,22 @@ def test_failed_run_waits_for_every_task(npy_stream, out, monkeypatch):
     time.sleep(0.3)  # a task still running would write now
     assert events[-1] == "cleanup" and "write" in events  # tasks finished (or were never started) first
     assert not [p.name for p in npy_stream.iterdir() if "gone" in p.name]
+
+
+def test_command_line_local_cluster(npy_stream, capsys):
+    """``--scheduler local``: the command line starts (and stops) its own cluster, whose
+    client is not the default one."""
+    pytest.importorskip("zarr")
+    from quatarray.cli import main
+
+    q, nbad = _bad_stream(seed=14)
+    np.save(npy_stream / "cli.npy", q)
+    ref = npy_stream / "cli-ref.npy"
+    assert main(["convert", str(npy_stream / "cli.npy"), str(ref), "--to", "euler:ZYX", "--on-invalid", "drop"]) == 0
+    dst = npy_stream / "cli.zarr"
+    assert main(["convert", str(npy_stream / "cli.npy"), str(dst), "--to", "euler:ZYX", "--on-invalid", "drop",
+                 "--scheduler", "local", "--chunk", "1000"]) == 0
+    assert same(_read_zarr(dst)[0], np.load(ref))
+    assert main(["resample", str(dst), str(npy_stream / "cli-r.npy"), "--rate", "3", "--in-rate", "2",
+                 "--scheduler", "local"]) == 1  # angles are no quaternions: a one-line data error
+    assert "expected quaternions of shape (N, 4)" in capsys.readouterr().err
