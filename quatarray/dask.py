@@ -804,7 +804,6 @@ def _convert_task(reader, a, b, row0, to, degrees, target, drop):
     is checked and converted while it is in cache, into a reused buffer
     written with one call. Returns the report figures.
     """
-
     from .cli import _PIECE, _target
     from .io.clean import Cleaner
 
