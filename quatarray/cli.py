@@ -11,7 +11,6 @@ import argparse
 import importlib
 import os
 import sys
-import warnings
 
 import numpy as np
 
@@ -99,15 +98,26 @@ def _target(to, degrees):
                 "no axis twice in a row, e.g. euler:ZXY"
             )
 
+        from .euler import euler_locked
+
         def euler(q, out=None):
-            e = qa.as_euler(q, seq, degrees=degrees)
+            e, locked = euler_locked(q, seq, degrees)
+            euler.locked += locked  # rows at gimbal lock, for the note (no warnings: threads)
             if out is None:
                 return e
             out[...] = e
             return out
 
+        euler.locked = 0
         return [f"e{k + 1}_{a}" for k, a in enumerate(seq)], (3,), euler
     raise UsageError(f"--to {to}: expected one of {TARGETS}")
+
+
+def gimbal_note(name, locked, err):
+    """The note for rows converted to Euler angles at gimbal lock (scipy's rule applied)."""
+    if locked:
+        print(f"{name}: gimbal lock in {locked} row{'s' if locked != 1 else ''}: the third angle "
+              "was set to 0 there (as scipy does)", file=err)
 
 
 def cmd_convert(args):
@@ -119,29 +129,23 @@ def cmd_convert(args):
     reader = _open(args, args.IN)
     check_output(args.OUT, [args.IN], args.force)
     clean = Cleaner(reader, args.on_invalid)
-    lock = 0
     with open_writer(args.OUT, fields, core, time=reader.has_time, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "convert") as bar:
         for ch in reader:
             n = len(ch)
             ch = clean(ch)
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                # An .npy OUT lends reused, already-faulted arrays for the kernel's output
-                # and copies them into the file in a background thread. Pieces of
-                # _PIECE rows keep those arrays small and the kernel on its serial
-                # variant: the second core is the writer's.
-                for a in range(0, len(ch), _PIECE):
-                    part = ch.slice(a, a + _PIECE)
-                    w.write(fn(part.data, out=w.buffer(len(part), part.data.dtype)), part.t, part.pos)
-            lock += any("gimbal" in str(c.message).lower() for c in caught)
+            # An .npy OUT lends reused, already-faulted arrays for the kernel's output
+            # and copies them into the file in a background thread. Pieces of
+            # _PIECE rows keep those arrays small and the kernel on its serial
+            # variant: the second core is the writer's.
+            for a in range(0, len(ch), _PIECE):
+                part = ch.slice(a, a + _PIECE)
+                w.write(fn(part.data, out=w.buffer(len(part), part.data.dtype)), part.t, part.pos)
             bar.update(n)
         if w.rows == 0:
             raise _no_rows(args.IN)
     clean.report(sys.stderr)
-    if lock:
-        print(f"{args.IN}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there (as scipy does)",
-              file=sys.stderr)
+    gimbal_note(args.IN, getattr(fn, "locked", 0), sys.stderr)
     return 0
 
 
@@ -212,6 +216,15 @@ class _FileTimes:
             )
 
 
+def timed_chunks(reader, in_rate):
+    """The reader's chunks, with times ``row / in_rate`` when the file has none (a dropped
+    row keeps its time out, as the rows after it keep theirs)."""
+    for ch in reader:
+        if not reader.has_time:
+            ch = ch.replace(t=(ch.row0 + np.arange(len(ch))) / in_rate)
+        yield ch
+
+
 def cmd_resample(args):
     if args.scheduler:
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
@@ -227,12 +240,6 @@ def cmd_resample(args):
     if args.in_rate is not None and not args.in_rate > 0:
         raise UsageError(f"--in-rate must be positive, got {args.in_rate}")
     clean = Cleaner(reader, args.on_invalid, ordered=True)
-
-    def source():
-        for ch in reader:
-            if not reader.has_time:
-                ch = ch.replace(t=(ch.row0 + np.arange(len(ch))) / args.in_rate)
-            yield ch
 
     def emit(w, keys, lo, hi, closed):
         nt = newt.upto(keys.t[hi], closed)
@@ -251,7 +258,7 @@ def cmd_resample(args):
             _progress(args, reader.rows, "resample") as bar:
         buf, lo, last_q = None, 0, None
         step = max(min(args.chunk, 1 << 16), 8)
-        for ch in source():
+        for ch in timed_chunks(reader, args.in_rate):
             n = len(ch)
             ch = clean(ch)
             bar.update(n)

@@ -43,6 +43,7 @@ True
 
 import contextlib
 import inspect
+import math
 import operator
 import os
 import sys
@@ -191,11 +192,19 @@ def as_dask(x, name="q", core=Q):
         a = np.asarray(x)
         x = da.from_array(a, chunks=a.shape or -1)
     check_core(x, name, core)
+    _known_chunks(x, name)
     k = len(core)
     split = {ax: -1 for ax in range(x.ndim - k, x.ndim) if len(x.chunks[ax]) > 1}
     if split:
         x = x.rechunk(split)
     return x
+
+
+def _known_chunks(x, name):
+    """A ValueError for a Dask array whose chunk sizes are unknown (after boolean indexing)."""
+    if any(math.isnan(c) for cs in x.chunks for c in cs):
+        raise ValueError(f"Expected `{name}` with known chunk sizes, got unknown ones; "
+                         f"call `{name}.compute_chunk_sizes()` first.")
 
 
 def _leaves(tmp, name, outs, metas):
@@ -352,7 +361,7 @@ def _cumprod_local(block, axis):
 
 
 def _cumprod_summary(local, axis):
-    return _rows(local, -1, axis)
+    return _rows(local, -1, axis) if local.shape[axis] else None
 
 
 def _cumprod_carry(carry, prev, cur):
@@ -379,7 +388,7 @@ def _unflip_local(block, axis):
 
 
 def _unflip_summary(local, axis):
-    return (_rows(local, 0, axis), _rows(local, -1, axis))
+    return (_rows(local, 0, axis), _rows(local, -1, axis)) if local.shape[axis] else None
 
 
 def _unflip_carry(carry, prev, cur):
@@ -397,11 +406,19 @@ def _unflip_apply(local, carry, axis):
 
 
 def _carry_all(carry_fn, summaries):
-    """Every chunk's carry along one scan (None for the first chunk), in one task."""
-    carries, carry = [None], None
-    for prev, cur in zip(summaries[:-1], summaries[1:]):
-        carry = carry_fn(carry, prev, cur)
+    """Every chunk's carry along one scan (None for the first chunk), in one task.
+
+    An empty chunk (summary None) is passed over: the next chunk's carry comes from
+    the last chunk that had rows."""
+    carries, carry, prev = [], None, None
+    for cur in summaries:
+        if cur is None:
+            carries.append(None)
+            continue
+        if prev is not None:
+            carry = carry_fn(carry, prev, cur)
         carries.append(carry)
+        prev = cur
     return carries
 
 
@@ -577,11 +594,12 @@ def local_cluster(n_workers=2, **kwargs):
         return LocalCluster(**options)
 
 
-def _compute_all(tasks, opts):
+def _compute_all(tasks, opts, independent=True):
     """``dask.compute(*tasks)`` on the scheduler of `opts`, as a list. Every task
     finishes (or fails) before an error is raised — none may still be writing into an
-    output that is being removed — and the error raised is that of the earliest task
-    in `tasks` (the first bad row of the file, as in memory)."""
+    output that is being removed. For `independent` tasks, the error raised is that of
+    the earliest in `tasks` (the first bad row of the file, as in memory); otherwise the
+    tasks share one graph, computed once."""
     sched = opts["scheduler"]
     if not isinstance(sched, str):  # a distributed Client (not necessarily the default one)
         futures = sched.compute(list(tasks))
@@ -589,9 +607,15 @@ def _compute_all(tasks, opts):
     else:
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
-            futures = [pool.submit(dask.compute, t, scheduler="sync") for t in tasks]
-        results = lambda: [f.result()[0] for f in futures]  # noqa: E731
+        with ThreadPoolExecutor(os.cpu_count() or 1) as pool:  # leaving it waits for every thread
+            if independent:
+                futures = [pool.submit(dask.compute, t, scheduler="sync") for t in tasks]
+                results = lambda: [f.result()[0] for f in futures]  # noqa: E731
+            else:
+                try:
+                    return list(dask.compute(*tasks, scheduler=sched, pool=pool))
+                finally:
+                    pool.shutdown(wait=True, cancel_futures=True)
     for f in futures:
         error = f.exception()  # waits for it
         if error is not None:
@@ -611,11 +635,13 @@ def _usage(msg):
 
 def _open_source(src, layout, chunk):
     """An ``.npy`` file or ``.zarr`` store of quaternions or matrices, read by the workers."""
-    from .io.readers import is_zarr, open_stream
+    from .io.formats import is_zarr
+    from .io.readers import open_stream
 
     if not (is_zarr(src) or os.fspath(src).endswith(".npy")):
         raise _usage(f"{src}: with --scheduler the input is an .npy file or a .zarr store")
-    return open_stream(src, "npy", kind="quat", layout=layout, chunk=chunk)
+    # workers open it by its absolute path (theirs may run in another folder)
+    return open_stream(os.path.abspath(src), "npy", kind="quat", layout=layout, chunk=chunk, name=os.fspath(src))
 
 
 class _NpyTarget:
@@ -632,9 +658,28 @@ class _NpyTarget:
         folder, base = os.path.split(os.path.abspath(self.dst))
         fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
         os.close(fd)
-        mm = np.lib.format.open_memmap(self.tmp, mode="w+", dtype=dtype, shape=tuple(shape))
-        self.offset, self.dtype, self.rowbytes = mm.offset, np.dtype(dtype), mm[:1].nbytes
-        del mm
+        with self._or_remove():
+            mm = np.lib.format.open_memmap(self.tmp, mode="w+", dtype=dtype, shape=tuple(shape))
+            self.offset, self.dtype, self.rowbytes = mm.offset, np.dtype(dtype), mm[:1].nbytes
+            del mm
+
+    @contextlib.contextmanager
+    def _or_remove(self):
+        """Remove the temporary output if what is inside fails."""
+        try:
+            yield
+        except BaseException:
+            self._remove(self.tmp)
+            raise
+
+    @staticmethod
+    def _remove(path):
+        import shutil
+
+        if os.path.isdir(path) and not os.path.islink(path):
+            shutil.rmtree(path, ignore_errors=True)
+        elif os.path.lexists(path):
+            os.remove(path)
 
     def write(self, row0, data):
         if len(data) == 0:
@@ -654,10 +699,17 @@ class _NpyTarget:
         return self
 
     def __exit__(self, kind, exc, tb):
-        if kind is None:
+        if kind is not None:
+            self._remove(self.tmp)
+            return
+        with self._or_remove():
+            old = None
+            if os.path.isdir(self.tmp) and os.path.lexists(self.dst):  # --force, for a store: moved aside first
+                old = self.tmp + ".old"
+                os.replace(self.dst, old)
             os.replace(self.tmp, self.dst)
-        elif os.path.exists(self.tmp):
-            os.remove(self.tmp)
+        if old:
+            self._remove(old)
 
 
 class _ZarrTarget(_NpyTarget):
@@ -677,8 +729,9 @@ class _ZarrTarget(_NpyTarget):
         folder, base = os.path.split(os.path.abspath(self.dst))
         self.tmp = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
         shape = tuple(int(n) for n in shape)
-        zarr.create_array(store=self.tmp, shape=shape, dtype=dtype, overwrite=True,
-                          chunks=(max(1, min(int(chunk), shape[0])),) + shape[1:])
+        with self._or_remove():
+            zarr.create_array(store=self.tmp, shape=shape, dtype=dtype, overwrite=True,
+                              chunks=(max(1, min(int(chunk), shape[0])),) + shape[1:])
         self.dtype = np.dtype(dtype)
 
     def write(self, row0, data):
@@ -688,29 +741,15 @@ class _ZarrTarget(_NpyTarget):
             zarr.open_array(self.tmp, mode="r+")[row0 : row0 + len(data)] = np.asarray(data, self.dtype)
         return len(data)
 
-    def __exit__(self, kind, exc, tb):
-        import shutil
-
-        if kind is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            return
-        old = None
-        if os.path.exists(self.dst):  # --force: the old store goes only once the new one is in place
-            old = self.tmp + ".old"
-            os.replace(self.dst, old)
-        os.replace(self.tmp, self.dst)
-        if old:
-            shutil.rmtree(old, ignore_errors=True)
-
 
 def _open_target(dst, shape, dtype, chunk):
-    from .io.readers import is_zarr
+    from .io.formats import is_zarr
 
     return (_ZarrTarget if is_zarr(dst) else _NpyTarget)(dst, shape, dtype, chunk)
 
 
 def _check_files(src, dst, force):
-    from .io.readers import is_zarr
+    from .io.formats import is_zarr
     from .io.writers import check_output
 
     if not (is_zarr(dst) or os.fspath(dst).endswith(".npy")):
@@ -777,6 +816,11 @@ def _plan_rows(reader, chunk, drop, opts):
     return [(int(a), int(b), int(o)) for a, b, o in zip(ins, ends, outs)], bad
 
 
+def _plan_sizes(plan, kept):
+    """The good rows each planned task gives (its output block's size: at most `chunk`)."""
+    return [int(n) for n in np.diff([o for _, _, o in plan] + [kept])]
+
+
 def _report(reader, figures, dropped, err):
     """The command line's notes: rows dropped, quaternions normalised."""
     from .io.clean import Cleaner
@@ -797,8 +841,9 @@ def _read_clean(reader, a, b, drop, clean):
 # convert_file
 
 
-def _convert_task(reader, a, b, row0, to, degrees, target, drop):
-    """Read, check, normalise, convert and write input rows ``[a, b)`` from output row `row0` on.
+def _convert_task(reader, a, b, row0, rows, to, degrees, target, drop):
+    """Read, check, normalise, convert and write input rows ``[a, b)`` (`rows` of them
+    good) from output row `row0` on.
 
     The rows go through in pieces of the command line's size, so each piece
     is checked and converted while it is in cache, into a reused buffer
@@ -808,18 +853,16 @@ def _convert_task(reader, a, b, row0, to, degrees, target, drop):
     from .io.clean import Cleaner
 
     _, core, fn = _target(to, degrees)
-    out = _scratch_rows(b - a, core, target.dtype)
+    out = _scratch_rows(rows, core, target.dtype)
     clean = Cleaner(reader, "drop" if drop else "error")
     n = 0
-    with _serial(), warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with _serial():
         for p in range(a, b, _PIECE):
             ch = _read_clean(reader, p, min(p + _PIECE, b), drop, clean)
             fn(ch.data.astype(target.dtype, copy=False), out=out[n : n + len(ch)])
             n += len(ch)
-        lock = any("gimbal" in str(c.message).lower() for c in caught)
     target.write(row0, out[:n])
-    return clean.normalised, clean.max_dev, lock
+    return clean.normalised, clean.max_dev, getattr(fn, "locked", 0)
 
 
 def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000, scheduler=None,
@@ -861,7 +904,7 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
     int
         0 (the command line's exit status).
     """
-    from .cli import _target
+    from .cli import _target, gimbal_note
 
     err = sys.stderr if err is None else err
     _check_files(src, dst, force)
@@ -871,15 +914,13 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
     drop = on_invalid == "drop"
     with scheduler_options(scheduler) as opts:
         plan, bad = _plan_rows(reader, chunk, drop, opts)
-        with _open_target(dst, (reader.rows - bad.size,) + tuple(core), dtype, chunk) as target:
-            tasks = [dask.delayed(_convert_task, pure=False)(reader, a, b, o, to, degrees, target, drop)
-                     for a, b, o in plan]
+        kept = reader.rows - bad.size
+        with _open_target(dst, (kept,) + tuple(core), dtype, chunk) as target:
+            tasks = [dask.delayed(_convert_task, pure=False)(reader, a, b, o, n, to, degrees, target, drop)
+                     for (a, b, o), n in zip(plan, _plan_sizes(plan, kept))]
             figures = _compute_all(tasks, opts)
     _report(reader, figures, bad.size, err)
-    lock = sum(f[2] for f in figures)
-    if lock:
-        print(f"{reader.name}: gimbal lock in {lock} chunk(s): the third angle was set to 0 there "
-              "(as scipy does)", file=err)
+    gimbal_note(reader.name, sum(f[2] for f in figures), err)
     return 0
 
 
@@ -924,6 +965,8 @@ def _flip_summary(block):
     """What the sign scan needs of one key block: its first row, its last row
     after the block is unflipped on its own, and the rows that local unflip negated
     (keys normalised first, as :func:`quatarray.spline` does)."""
+    if not len(block):
+        return None
     with _serial():
         local = qa.unflip(qa.normalize(block))
     flipped = (np.signbit(local) != np.signbit(block)).any(axis=-1)
@@ -936,7 +979,7 @@ def _window_flips(summaries, starts, firsts):
     One task: the chunk signs carried across the borders (as :func:`unflip`
     does), then each window's first row looked up in its chunk's local flips.
     """
-    carries = _carry_all(_unflip_carry, [(first, last) for first, last, _ in summaries])
+    carries = _carry_all(_unflip_carry, [None if f is None else f[:2] for f in summaries])
     out = []
     for w0 in firsts:
         c = int(np.searchsorted(starts, w0, side="right")) - 1
@@ -1082,6 +1125,7 @@ def _lazy_new_times(t_raw, new_times, k, chunks):
     small pass (which raises the in-memory message for a time outside the keys')."""
     from .interpolation import _plan_times
 
+    _known_chunks(new_times, "new_times")
     nt_d = new_times if chunks is None else new_times.rechunk(int(chunks))
     if nt_d.ndim != 1:
         raise ValueError(f"Expected `new_times` to have shape (N,), got {tuple(nt_d.shape)}.")
@@ -1158,23 +1202,39 @@ def angular_velocity(q, times, frame="space"):
 
 
 def _read_keys_task(reader, a, b, drop):
-    """Input rows ``[a, b)`` of a key stream, checked and normalised as the command line does."""
+    """Input rows ``[a, b)`` of a key stream, checked and normalised as the command line
+    does, piece by piece (a long run of dropped rows never sits in memory), and the
+    normalisation figures."""
+    from .cli import _PIECE
     from .io.clean import Cleaner
 
+    clean = Cleaner(reader, "drop" if drop else "error")
     with _serial():
-        return _read_clean(reader, a, b, drop, Cleaner(reader, "drop" if drop else "error")).data
+        parts = [_read_clean(reader, p, min(p + _PIECE, b), drop, clean).data for p in range(a, b, _PIECE)]
+    data = np.concatenate(parts) if len(parts) > 1 else np.array(parts[0])  # not a view of the map
+    return data, clean.normalised, clean.max_dev
+
+
+def _figures(results):
+    return [(normalised, dev) for _, normalised, dev in results]
 
 
 def _lazy_keys(reader, plan, kept, drop):
-    """A key stream (npy or zarr) as a Dask array read and checked by the workers,
-    one block per planned task (see :func:`_plan_rows`)."""
+    """A key stream (npy or zarr) as a Dask array read and checked by the workers, one
+    block per planned task (see :func:`_plan_rows`), and a Delayed list of the blocks'
+    normalisation figures (compute both together: the blocks are read once)."""
+    from dask.delayed import Delayed
+
     dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
     mtime = os.path.getmtime(reader.path)
-    name = "read-keys-" + tokenize(reader.path, mtime, reader.layout, plan, drop)
-    dsk = {(name, i, 0): (_read_keys_task, reader, a, b, drop) for i, (a, b, _) in enumerate(plan)}
-    sizes = tuple(int(n) for n in np.diff([o for _, _, o in plan] + [kept]))
-    return da.Array(HighLevelGraph.from_collections(name, dsk, dependencies=[]), name, (sizes, (4,)),
-                    meta=np.empty((0, 0), dtype))
+    token = tokenize(reader.path, mtime, reader.layout, plan, drop)
+    raw, name, report = f"read-keys-raw-{token}", f"read-keys-{token}", f"read-keys-report-{token}"
+    dsk = {(raw, i): (_read_keys_task, reader, a, b, drop) for i, (a, b, _) in enumerate(plan)}
+    dsk.update({(name, i, 0): (operator.getitem, (raw, i), 0) for i in range(len(plan))})
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[])
+    keys = da.Array(graph, name, (tuple(_plan_sizes(plan, kept)), (4,)), meta=np.empty((0, 0), dtype))
+    figures = {report: (_figures, [(raw, i) for i in range(len(plan))])}
+    return keys, Delayed(report, HighLevelGraph.from_collections(report, figures, dependencies=[keys]))
 
 
 def _write_block(target, row0, data):
@@ -1203,6 +1263,9 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     rows of DST (an ``.npy`` file or a ``.zarr`` store chunked by `chunk`
     rows), which appears when all succeeded.
 
+    In error mode, the bad row named is one of the bad rows (all blocks are
+    read at once), not necessarily the first, unlike :func:`convert_file`.
+
     An ``.npy`` or ``.zarr`` SRC has no times: give its sampling rate as
     `in_rate` (key k at k / in_rate seconds; dropped rows keep their times
     out); its blocks are read by the workers. Other formats (csv, tum,
@@ -1213,7 +1276,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     int
         0 (the command line's exit status).
     """
-    from .cli import _FileTimes, _RateTimes
+    from .cli import _FileTimes, _RateTimes, timed_chunks
     from .io.clean import Cleaner
     from .io.errors import DataError
     from .io.readers import open_stream
@@ -1235,19 +1298,20 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
         raise _usage(f"--in-rate must be positive, got {in_rate}")
     drop = on_invalid == "drop"
     with scheduler_options(scheduler) as opts:
+        figures, dropped = [], 0
         if reader.format in ("npy", "zarr"):
             plan, bad = _plan_rows(reader, chunk, drop, opts)
-            keys = _lazy_keys(reader, plan, reader.rows - bad.size, drop)
+            keys, report = _lazy_keys(reader, plan, reader.rows - bad.size, drop)
+            figures = [report]
             t = np.delete(np.arange(reader.rows, dtype=np.float64), bad) / in_rate
-            _report(reader, [], bad.size, err)
+            dropped = bad.size
         else:
             clean = Cleaner(reader, on_invalid, ordered=True)
-            whole = [c for c in map(clean, reader) if len(c)]
+            whole = [c for c in map(clean, timed_chunks(reader, in_rate)) if len(c)]
             if not whole:
                 raise DataError(f"{reader.name}: no valid rows")
             whole = concat(whole)
-            keys = da.from_array(whole.data, chunks=(int(chunk), 4))
-            t = whole.t if whole.t is not None else (np.arange(len(whole.data)) / in_rate)
+            keys, t = da.from_array(whole.data, chunks=(int(chunk), 4)), whole.t
             clean.report(err)
         if t.shape[0] < 2:
             raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
@@ -1266,5 +1330,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
         except ValueError as exc:
             raise DataError(f"{reader.name}: {exc}") from None
         with _open_target(dst, lazy.shape, lazy.dtype, chunk) as target:
-            _compute_all([_store(lazy, target).sum()], opts)
+            done = _compute_all([_store(lazy, target).sum()] + figures, opts, independent=False)
+    if figures:
+        _report(reader, done[1], dropped, err)
     return 0

@@ -299,16 +299,22 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     >>> np.round(qa.as_euler([1, 0, 0, 0], "ZXZ", suppress_warnings=True), 9)  # gimbal lock
     array([0., 0., 0.])
     """
+    out, locked = euler_locked(q, seq, degrees)
+    if locked and not suppress_warnings:
+        warnings.warn(_GIMBAL.format(n=locked, total=out.size // 3), UserWarning, stacklevel=2)
+    return out
+
+
+def euler_locked(q, seq, degrees=False):
+    """``(as_euler(q, seq, degrees), number of rows at gimbal lock)``, without a warning:
+    for callers that count lock across many calls or threads (the command line)."""
     _, _, params = _parse_seq(seq)
     a = check_core(as_float(q, "q"), "q", (4,))
     flat = _rows(a, (4,))
     out = np.empty((flat.shape[0], 3), a.dtype)
     flags = np.empty(flat.shape[0], np.bool_)
     _as_euler(flat, *params, 180.0 / math.pi if degrees else 1.0, out, flags)
-    locked = np.count_nonzero(flags) if not suppress_warnings else 0
-    if locked:
-        warnings.warn(_GIMBAL.format(n=locked, total=flat.shape[0]), UserWarning, stacklevel=2)
-    return out.reshape(a.shape[:-1] + (3,))
+    return out.reshape(a.shape[:-1] + (3,)), int(np.count_nonzero(flags))
 
 
 def from_euler(seq, angles, degrees=False):

@@ -692,3 +692,59 @@ def test_command_line_local_cluster(npy_stream, capsys):
     assert main(["resample", str(dst), str(npy_stream / "cli-r.npy"), "--rate", "3", "--in-rate", "2",
                  "--scheduler", "local"]) == 1  # angles are no quaternions: a one-line data error
     assert "expected quaternions of shape (N, 4)" in capsys.readouterr().err
+
+
+def test_empty_and_unknown_chunks(client):
+    """Empty chunks pass through every scan; unknown chunk sizes are a clear error."""
+    q = stream(20, seed=15)
+    t, nt = np.arange(20.0), np.linspace(0, 19, 77)
+    for rows in ((5, 0, 15), (0, 20), (20, 0), (3, 0, 0, 7, 0, 10)):
+        x = da.from_array(q, chunks=(rows, 4))
+        assert same(run(client, qd.unflip(x)), qa.unflip(q))
+        np.testing.assert_allclose(run(client, qd.cumprod(x)), qa.cumprod(q), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(run(client, qd.spline(t, x, nt, chunks=10)), qa.spline(t, q, nt), atol=1e-13)
+    x = chunked(q, 6)
+    with pytest.raises(ValueError, match=r"known chunk sizes.*q\.compute_chunk_sizes\(\)"):
+        qd.normalize(x[x[:, 0] > 0])
+    times = da.from_array(nt, chunks=30)
+    with pytest.raises(ValueError, match="`new_times` with known chunk sizes"):
+        qd.spline(t, x, times[times > 3])
+
+
+def test_gimbal_lock_counted_in_rows(npy_stream, capsys):
+    """The note counts rows at gimbal lock, the same on threads, a cluster and in memory."""
+    from quatarray.cli import main
+
+    q = stream(3000, seed=16)
+    q[::100] = qa.from_euler("ZYX", [0.3, np.pi / 2, 0.2])  # 30 rows at gimbal lock
+    np.save(npy_stream / "lock.npy", q)
+    assert main(["convert", str(npy_stream / "lock.npy"), str(npy_stream / "lock-m.npy"), "--to", "euler:ZYX",
+                 "--chunk", "700", "--force"]) == 0
+    assert "gimbal lock in 30 rows" in capsys.readouterr().err
+    for i in range(2):  # threads, then the local cluster of the command line
+        qd.convert_file(npy_stream / "lock.npy", npy_stream / "lock-d.npy", "euler:ZYX", chunk=200,
+                        scheduler=[None, "local"][i], force=True)
+        assert "gimbal lock in 30 rows" in capsys.readouterr().err
+        assert same(np.load(npy_stream / "lock-d.npy"), np.load(npy_stream / "lock-m.npy"))
+
+
+@needs("interpolation")
+def test_resample_file_notes_and_text_drop(npy_stream, tmp_path, capsys):
+    """Resample on the workers reports normalised keys like the command line, and a text
+    file without times keeps each row's own time when bad rows are dropped."""
+    from quatarray.cli import main
+
+    src = npy_stream / "q.npy"  # slightly non-unit keys
+    assert qd.resample_file(src, tmp_path / "r.npy", rate=3, in_rate=2, chunk=900) == 0
+    assert "normalised 5000 non-unit quaternions" in capsys.readouterr().err
+    q = stream(20, seed=17)
+    lines = ["qw,qx,qy,qz"] + [",".join(str(float(v)) for v in row) for row in q]
+    lines[8] = "nan,0,0,1"
+    (tmp_path / "k.csv").write_text("\n".join(lines) + "\n")
+    args = [str(tmp_path / "k.csv"), "--rate", "2", "--in-rate", "1", "--on-invalid", "drop"]
+    assert main(["resample", args[0], str(tmp_path / "cli.csv"), *args[1:]]) == 0
+    expect = np.loadtxt(tmp_path / "cli.csv", delimiter=",", skiprows=1)[:, 1:]
+    qd.resample_file(tmp_path / "k.csv", tmp_path / "d.npy", rate=2, in_rate=1, on_invalid="drop")
+    got = np.load(tmp_path / "d.npy")
+    assert got.shape == expect.shape == (39, 4)  # 0 … 19 s at 2 Hz: row 7's gap keeps the times
+    np.testing.assert_allclose(got, expect, rtol=0, atol=1e-12)

@@ -25,14 +25,20 @@ def by_extension(path):
     return {".npy": "npy", ".parquet": "parquet", ".pq": "parquet", ".bvh": "bvh"}.get(ext)
 
 
+def is_zarr(path):
+    """Whether `path` names a zarr store (a folder whose name ends in ``.zarr``)."""
+    return os.fspath(path).rstrip("/" + os.sep).endswith(".zarr")
+
+
 def output_format(path):
     """The writer for OUT, chosen by its extension."""
     ext = os.path.splitext(str(path))[1].lower()
     fmt = OUT_FORMATS.get(ext)
     if fmt is None:
+        zarr = " (a .zarr store is written by convert and resample with --scheduler)" if ext == ".zarr" else ""
         raise UsageError(
             f"{path}: cannot tell the output format from the extension {ext or '(none)'!r}; "
-            "use .npy, .csv, .parquet or .txt (TUM)"
+            f"use .npy, .csv, .parquet or .txt (TUM){zarr}"
         )
     return fmt
 

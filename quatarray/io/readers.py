@@ -30,14 +30,10 @@ import numpy as np
 
 from . import formats as F
 from .errors import DataError, UsageError
+from .formats import is_zarr
 from .streams import Chunk
 
 DEFAULT_CHUNK = 1 << 18
-
-
-def is_zarr(path):
-    """Whether `path` names a zarr store (a folder whose name ends in ``.zarr``)."""
-    return os.fspath(path).rstrip("/" + os.sep).endswith(".zarr")
 
 
 def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DEFAULT_CHUNK,

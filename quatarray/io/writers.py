@@ -13,6 +13,7 @@ import numpy as np
 
 from . import formats as F
 from .errors import UsageError
+from .formats import is_zarr
 
 
 def check_output(out, inputs=(), force=False):
@@ -34,7 +35,7 @@ def check_output(out, inputs=(), force=False):
         same = os.path.exists(out) and os.path.exists(src) and os.path.samefile(out, src)
         if same or os.path.abspath(out) == os.path.abspath(src):
             raise UsageError(f"{out}: the output is the input file; write to another file")
-    if os.path.isdir(out) and not out.rstrip("/").endswith(".zarr"):  # a zarr store is a folder
+    if os.path.isdir(out) and not is_zarr(out):  # a zarr store is a folder
         raise UsageError(f"{out}: is a directory")
     if os.path.exists(out) and not force:
         raise UsageError(f"{out}: exists; use --force to overwrite it")
