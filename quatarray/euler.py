@@ -279,7 +279,9 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
         At most once per call, when any rotation is at gimbal lock (the second
         angle within 1e-7 rad of its singular values). There the third angle
         is set to 0 and the first carries the whole rotation about the
-        (then aligned) first and third axes, as scipy does. The test is
+        (then aligned) first and third axes, as scipy does; the angles then
+        reproduce the rotation to within 2e-7 rad (twice the middle angle's
+        distance from the singular value). The test is
         ``h1 <= tan(5e-8) h2`` on the two half-angle magnitudes, the same as
         scipy's ``|θ₂| <= 1e-7`` up to rounding but equally sharp near π; in
         float32 it sees the data's own rounding (~1e-7), so rotations that close
