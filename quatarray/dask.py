@@ -1204,25 +1204,40 @@ def angular_velocity(q, times, frame="space"):
 def _read_keys_task(reader, a, b, drop):
     """Input rows ``[a, b)`` of a key stream, checked and normalised as the command line
     does, piece by piece (a long run of dropped rows never sits in memory), and the
-    normalisation figures."""
+    normalisation figures; or the DataError naming the block's first bad row, returned
+    (see :func:`_first_error`)."""
     from .cli import _PIECE
     from .io.clean import Cleaner
+    from .io.errors import DataError
 
     clean = Cleaner(reader, "drop" if drop else "error")
-    with _serial():
-        parts = [_read_clean(reader, p, min(p + _PIECE, b), drop, clean).data for p in range(a, b, _PIECE)]
+    try:
+        with _serial():
+            parts = [_read_clean(reader, p, min(p + _PIECE, b), drop, clean).data for p in range(a, b, _PIECE)]
+    except DataError as exc:
+        return exc
     data = np.concatenate(parts) if len(parts) > 1 else np.array(parts[0])  # not a view of the map
     return data, clean.normalised, clean.max_dev
 
 
-def _figures(results):
+def _first_error(results):
+    """Raise the error of the earliest block that has one (the file's first bad row, as
+    in memory, whichever block was read first); else the blocks' normalisation figures."""
+    for r in results:
+        if isinstance(r, Exception):
+            raise r
     return [(normalised, dev) for _, normalised, dev in results]
+
+
+def _key_block(result, checked):
+    return result[0]
 
 
 def _lazy_keys(reader, plan, kept, drop):
     """A key stream (npy or zarr) as a Dask array read and checked by the workers, one
     block per planned task (see :func:`_plan_rows`), and a Delayed list of the blocks'
-    normalisation figures (compute both together: the blocks are read once)."""
+    normalisation figures (compute both together: the blocks are read once). No block
+    is handed on before every block was read and checked."""
     from dask.delayed import Delayed
 
     dtype = as_float(np.empty(0, reader.dtype), "IN").dtype
@@ -1230,11 +1245,11 @@ def _lazy_keys(reader, plan, kept, drop):
     token = tokenize(reader.path, mtime, reader.layout, plan, drop)
     raw, name, report = f"read-keys-raw-{token}", f"read-keys-{token}", f"read-keys-report-{token}"
     dsk = {(raw, i): (_read_keys_task, reader, a, b, drop) for i, (a, b, _) in enumerate(plan)}
-    dsk.update({(name, i, 0): (operator.getitem, (raw, i), 0) for i in range(len(plan))})
+    dsk[report] = (_first_error, [(raw, i) for i in range(len(plan))])
+    dsk.update({(name, i, 0): (_key_block, (raw, i), report) for i in range(len(plan))})
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[])
     keys = da.Array(graph, name, (tuple(_plan_sizes(plan, kept)), (4,)), meta=np.empty((0, 0), dtype))
-    figures = {report: (_figures, [(raw, i) for i in range(len(plan))])}
-    return keys, Delayed(report, HighLevelGraph.from_collections(report, figures, dependencies=[keys]))
+    return keys, Delayed(report, graph, layer=name)
 
 
 def _write_block(target, row0, data):
@@ -1263,8 +1278,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     rows of DST (an ``.npy`` file or a ``.zarr`` store chunked by `chunk`
     rows), which appears when all succeeded.
 
-    In error mode, the bad row named is one of the bad rows (all blocks are
-    read at once), not necessarily the first, unlike :func:`convert_file`.
+    In error mode, the error names the file's first bad row, as in memory.
 
     An ``.npy`` or ``.zarr`` SRC has no times: give its sampling rate as
     `in_rate` (key k at k / in_rate seconds; dropped rows keep their times

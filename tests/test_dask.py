@@ -675,6 +675,34 @@ def test_failed_run_waits_for_every_task(npy_stream, out, monkeypatch):
     assert not [p.name for p in npy_stream.iterdir() if "gone" in p.name]
 
 
+@needs("interpolation")
+@pytest.mark.parametrize("scheduler", ["threads", "cluster"])
+def test_resample_file_names_the_first_bad_row(npy_stream, scheduler, client, monkeypatch):
+    """Block 1's bad row is found first (block 0 is read slowly), yet the error names
+    block 0's: the first bad row of the file, as in memory."""
+    import time
+
+    from quatarray.io.errors import DataError
+
+    q = np.load(npy_stream / "q.npy")
+    q[[990, 1005, 2500]] = np.nan
+    src = npy_stream / "two-bad.npy"
+    np.save(src, q)
+    read = qd._read_keys_task
+
+    def slow_first(reader, a, b, drop):
+        if a == 0:
+            time.sleep(0.5)
+        return read(reader, a, b, drop)
+
+    if scheduler == "threads":
+        monkeypatch.setattr(qd, "_read_keys_task", slow_first)
+    with pytest.raises(DataError, match=r"two-bad\.npy: row 990: quaternion is not finite"):
+        qd.resample_file(src, npy_stream / "never.npy", rate=5, in_rate=2, chunk=1000,
+                         scheduler=None if scheduler == "threads" else client)
+    assert not (npy_stream / "never.npy").exists()
+
+
 def test_command_line_local_cluster(npy_stream, capsys):
     """``--scheduler local``: the command line starts (and stops) its own cluster, whose
     client is not the default one."""
