@@ -327,9 +327,9 @@ def _unflip(q, out):
 # ---- spline: per-segment tables, segment search, batched evaluation ----
 
 
-@kernel
-def _arcs(p, q, seg, col):
-    """seg[n, col:col+5] = (θ, v) of the great arc p[n] → q[n]: slerp = p cos tθ + v sin tθ.
+@inline
+def fixed_arc(p, q):
+    """(θ, v) of the great arc from unit p to unit q: slerp = p cos tθ + v sin tθ.
 
     v is the unit tangent at p towards q, (q − p cos θ)/sin θ, with
     p cos θ = p − p(1 − cos θ) and 1 − cos θ = 2a²/(a² + b²), sin θ =
@@ -337,31 +337,55 @@ def _arcs(p, q, seg, col):
     for close p, q). Identical ends: v = 0 (the constant p); antipodal ends
     (θ = π): v = p ⊗ i, the convention of :func:`arc_weights`.
     """
-    zero = like(seg, 0.0)
-    two = like(seg, 2.0)
-    for n in range(p.shape[0]):
-        pn = ld4(p, n)
-        qn = ld4(q, n)
-        th, st, anti, sgn = arc(pn, qn, zero)
-        a2 = (pn[0] - qn[0]) ** 2 + (pn[1] - qn[1]) ** 2 + (pn[2] - qn[2]) ** 2 + (pn[3] - qn[3]) ** 2
-        b2 = (pn[0] + qn[0]) ** 2 + (pn[1] + qn[1]) ** 2 + (pn[2] + qn[2]) ** 2 + (pn[3] + qn[3]) ** 2
-        f = two * a2 / (a2 + b2)  # 1 − cos θ
-        v = ((qn[0] - pn[0] + f * pn[0]) / st, (qn[1] - pn[1] + f * pn[1]) / st,
-             (qn[2] - pn[2] + f * pn[2]) / st, (qn[3] - pn[3] + f * pn[3]) / st)
-        if th == zero:
-            v = (zero, zero, zero, zero)
-        if anti > zero:
-            v = (-pn[1], pn[0], pn[3], -pn[2])
-        seg[n, col] = th
-        seg[n, col + 1] = v[0]
-        seg[n, col + 2] = v[1]
-        seg[n, col + 3] = v[2]
-        seg[n, col + 4] = v[3]
+    zero = like(p[0], 0.0)
+    th, st, anti, sgn = arc(p, q, zero)
+    a2 = (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2 + (p[3] - q[3]) ** 2
+    b2 = (p[0] + q[0]) ** 2 + (p[1] + q[1]) ** 2 + (p[2] + q[2]) ** 2 + (p[3] + q[3]) ** 2
+    f = like(p[0], 2.0) * a2 / (a2 + b2)  # 1 − cos θ
+    v = ((q[0] - p[0] + f * p[0]) / st, (q[1] - p[1] + f * p[1]) / st,
+         (q[2] - p[2] + f * p[2]) / st, (q[3] - p[3] + f * p[3]) / st)
+    if th == zero:
+        v = (zero, zero, zero, zero)
+    if anti > zero:
+        v = (-p[1], p[0], p[3], -p[2])
+    return th, v[0], v[1], v[2], v[3]
+
+
+@inline
+def put(seg, n, c, vals):
+    for i in range(len(vals)):
+        seg[n, c + i] = vals[i]
+
+
+@rowloop(rows=4)
+def _segments(q, c_out, c_in, kind, seg):
+    """Row n of a spline's segment table, written once: q_n, c_out[n], c_in[n+1],
+    q_{n+1}, then the fixed arcs its evaluation loop needs (see the table's layout
+    below): ``kind`` 1 (Bézier) q_n → c_out[n] → c_in[n+1] → q_{n+1}; 2 (squad)
+    q_n → q_{n+1} and c_out[n] → c_in[n+1]; 0 (slerp, nlerp) q_n → q_{n+1}."""
+    for n in prange(seg.shape[0]):
+        p = ld4(q, n)
+        r = ld4(q, n + 1)
+        a = ld4(c_out, n)
+        b = ld4(c_in, n + 1)
+        put(seg, n, 0, p)
+        put(seg, n, 4, a)
+        put(seg, n, 8, b)
+        put(seg, n, 12, r)
+        if kind == 1:
+            put(seg, n, 16, fixed_arc(p, a))
+            put(seg, n, 21, fixed_arc(a, b))
+            put(seg, n, 26, fixed_arc(b, r))
+        elif kind == 2:
+            put(seg, n, 16, fixed_arc(p, r))
+            put(seg, n, 21, fixed_arc(a, b))
+        else:
+            put(seg, n, 16, fixed_arc(p, r))
 
 
 @inline
 def arc_slerp(p, q, c, t):
-    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`_arcs`."""
+    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`fixed_arc`."""
     th, v0, v1, v2, v3 = c
     s, co = sincos(t * th)
     r = (co * p[0] + s * v0, co * p[1] + s * v1, co * p[2] + s * v2, co * p[3] + s * v3)
@@ -448,7 +472,8 @@ def seg_q(seg, n, c):
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
-# 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`_arcs`) at 16, 21, 26.
+# 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`fixed_arc`) at 16, 21, 26
+# (written by `_segments`).
 #
 # The evaluation loops go segment by segment: for each run of samples in one
 # segment (the whole run when new times are sorted, single samples when not)
@@ -1005,27 +1030,17 @@ def spline(times, keys, new_times, method="bezier"):
     from .algebra import normalize
 
     q = unflip(normalize(q))
-    dtype = q.dtype
-    seg = np.zeros((k - 1, NSEG), dtype)
-    seg[:, 0:4] = q[:-1]
-    seg[:, 12:16] = q[1:]
+    seg = np.empty((k - 1, NSEG), q.dtype)
     if method == "bezier":
         a, b = bezier_controls(q, t)
-        seg[:, 4:8] = a[:-1]
-        seg[:, 8:12] = b[1:]
-        for col, (p0, p1) in zip((16, 21, 26), ((0, 4), (4, 8), (8, 12))):
-            _arcs(np.ascontiguousarray(seg[:, p0:p0 + 4]), np.ascontiguousarray(seg[:, p1:p1 + 4]), seg, col)
+        _segments(q, a, b, 1, seg)
     elif method == "squad":
         s = squad_controls(q)
-        seg[:, 4:8] = s[:-1]
-        seg[:, 8:12] = s[1:]
-        _arcs(q[:-1], q[1:], seg, 16)
-        _arcs(s[:-1], s[1:], seg, 21)
+        _segments(q, s, s, 2, seg)
     else:
-        _arcs(q[:-1], q[1:], seg, 16)
-
+        _segments(q, q, q, 0, seg)  # no controls: columns 4-11 repeat the keys, 21-30 are unused
     m = flat_nt.shape[0]
-    out = np.empty((m, 4), dtype)
+    out = np.empty((m, 4), q.dtype)
     if m:
         _SPLINE[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
