@@ -290,6 +290,24 @@ def _bisect(p, q, out):
             st4flat(out, i, bisect4(ld4flat(p, i), ld4flat(q, i)))
 
 
+@rowloop(rows=1)
+def _bezier_inner(q, f_out, f_in, a, b):
+    """Controls of the interior keys 1 … K−2 (flat arrays; row i is key i + 1), one
+    pass: â = bisect(double(q_{n−1}, q_n), q_{n+1}), a₀ = slerp(q_n, â, 1/3),
+    a_n = slerp(q_n, a₀, f_out), b_n = slerp(q_n, double(a₀, q_n), f_in)."""
+    n = f_out.shape[0]
+    third = like(f_out, 1.0) / like(f_out, 3.0)
+    zero = like(f_out, 0.0)
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            qn = ld4flat(q, i + 1)
+            a0 = slerp4(qn, bisect4(double4(ld4flat(q, i), qn), ld4flat(q, i + 2)), third, zero)
+            st4flat(a, i, slerp4(qn, a0, ld1(f_out, i), zero))
+            st4flat(b, i, slerp4(qn, double4(a0, qn), ld1(f_in, i), zero))
+
+
 @rowloop(rows=4)
 def _bezier(q0, a, b, q1, t, out):
     n = t.shape[0]
@@ -815,20 +833,17 @@ def bezier_controls(keys, times=None):
     else:
         t = _times(times, k)
         f_out, f_in = _tangent_scales(np.diff(t))
-    # batched over the keys (the vectorised kernels of the public functions)
-    a = np.empty_like(q)
-    b = np.empty_like(q)
+    a = np.empty(q.shape, q.dtype)  # C order: rows 1 … K−2 are flat views
+    b = np.empty(q.shape, q.dtype)
     third = 1 / 3
     a[0] = slerp(q[0], q[1], third, shortest=False)
     b[0] = double(a[0], q[0])
     b[-1] = slerp(q[-1], q[-2], third, shortest=False)
     a[-1] = double(b[-1], q[-1])
     if k > 2:
-        qn = q[1:-1]
-        an = slerp(qn, bisect(double(q[:-2], qn), q[2:]), third, shortest=False)
-        bn = double(an, qn)
-        slerp(qn, an, f_out[1:-1].astype(q.dtype), shortest=False, out=a[1:-1])
-        slerp(qn, bn, f_in[1:-1].astype(q.dtype), shortest=False, out=b[1:-1])
+        qf = np.ascontiguousarray(q).reshape(-1)
+        _bezier_inner(qf, f_out[1:-1].astype(q.dtype), f_in[1:-1].astype(q.dtype),
+                      a[1:-1].reshape(-1), b[1:-1].reshape(-1))
     return a, b
 
 

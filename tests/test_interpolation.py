@@ -224,6 +224,24 @@ def test_bezier_controls_match_reference(rng):
     assert np.allclose(b[-1], qa.slerp(keys[-1], keys[-2], 1 / 3), atol=1e-15)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_bezier_controls_uneven_times_match_public_functions(rng, dtype):
+    """The fused control loop against the docstring's formulas composed from the public
+    slerp, double and bisect (uneven times scale the tangent arcs), and F-order input."""
+    keys = smooth_keys(rng, 9).astype(dtype)
+    t = np.cumsum(rng.uniform(0.2, 3.0, 9))
+    h = np.diff(t)
+    a, b = qa.bezier_controls(np.asfortranarray(keys), t)
+    assert a.dtype == b.dtype == dtype
+    for n in range(1, 8):
+        q = keys[n]
+        a0 = qa.slerp(q, qa.bisect(qa.double(keys[n - 1], q), keys[n + 1]), 1 / 3, shortest=False)
+        f_out, f_in = 2 * h[n] / (h[n - 1] + h[n]), 2 * h[n - 1] / (h[n - 1] + h[n])
+        tol = 1e-6 if dtype == np.float32 else 1e-15
+        np.testing.assert_allclose(a[n], qa.slerp(q, a0, f_out, shortest=False), rtol=0, atol=tol)
+        np.testing.assert_allclose(b[n], qa.slerp(q, qa.double(a0, q), f_in, shortest=False), rtol=0, atol=tol)
+
+
 def test_bezier_matches_reference_and_broadcasts(rng):
     q0, a, b, q1 = smooth_keys(rng, 4)
     t = np.linspace(-0.2, 1.2, 15)
