@@ -961,16 +961,20 @@ def _materialise(x, name):
     return a
 
 
-def _flip_summary(block):
-    """What the sign scan needs of one key block: its first row, its last row
-    after the block is unflipped on its own, and the rows that local unflip negated
-    (keys normalised first, as :func:`quatarray.spline` does)."""
+def _flip_summary(block, rows):
+    """What the sign scan needs of one key block: its first row, its last row after
+    the block is unflipped on its own, and whether that negated each of `rows` (the
+    windows' first rows in this block; keys normalised first, as :func:`quatarray.spline`
+    does). One pass, nothing the size of the block written."""
+    from .interpolation import _sign_summary
+
     if not len(block):
         return None
-    with _serial():
-        local = qa.unflip(qa.normalize(block))
-    flipped = (np.signbit(local) != np.signbit(block)).any(axis=-1)
-    return local[:1], local[-1:], flipped
+    block = np.ascontiguousarray(block)
+    ends = np.empty((2, 4), block.dtype)
+    negated = np.zeros(len(rows), np.bool_)
+    _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
+    return ends[:1], ends[1:], dict(zip(rows, negated.tolist()))
 
 
 def _window_flips(summaries, starts, firsts):
@@ -984,7 +988,7 @@ def _window_flips(summaries, starts, firsts):
     for w0 in firsts:
         c = int(np.searchsorted(starts, w0, side="right")) - 1
         chunk_sign = bool(np.ravel(carries[c])[0]) if carries[c] is not None else False
-        out.append(chunk_sign != bool(summaries[c][2][w0 - starts[c]]))
+        out.append(chunk_sign != summaries[c][2][w0 - starts[c]])
     return out
 
 
@@ -1088,7 +1092,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     # building the graph, and two calls then never share results
     token = uuid.uuid4().hex
     name, sname, fname = (f"spline{p}-{token}" for p in ("", "-summary", "-flips"))
-    dsk = {(sname, i): (_flip_summary, (x.name, i, 0)) for i in range(x.numblocks[0])}
+    dsk = {}
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
     firsts = []
     for j, (part, span) in enumerate(zip(parts, spans)):
@@ -1101,6 +1105,10 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         flip = (operator.getitem, fname, len(firsts))
         dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, part, method)
         firsts.append(w0)
+    block_of = np.searchsorted(starts, firsts, side="right") - 1
+    for i in range(x.numblocks[0]):
+        rows = sorted({int(w0 - starts[i]) for w0, c in zip(firsts, block_of) if c == i})
+        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), rows)
     dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))

@@ -342,6 +342,28 @@ def _unflip(q, out):
             prev = cur
 
 
+@kernel
+def _sign_summary(q, rows, ends, negated):
+    """What a blocked sign scan needs of one block of raw keys, seen as :func:`spline`
+    sees them (normalised, then unflipped from the block's first row), without
+    writing the block: ``ends`` = its first and last rows, ``negated[j]`` whether
+    row ``rows[j]`` (ascending) was negated."""
+    prev = E.qnormalize(E.load4(q, 0))
+    j = 0
+    for i in range(q.shape[0]):
+        cur = E.qnormalize(E.load4(q, i))
+        neg = i > 0 and E.qdot(cur, prev) < like(ends, 0.0)  # as _unflip
+        if neg:
+            cur = E.qneg(cur)
+        if i == 0:
+            E.store4(ends, 0, cur)
+        while j < rows.shape[0] and rows[j] == i:
+            negated[j] = neg
+            j += 1
+        prev = cur
+    E.store4(ends, 1, prev)
+
+
 # ---- spline: per-segment tables, segment search, batched evaluation ----
 
 
