@@ -15,9 +15,10 @@ overhead = time(1 worker) / time(in memory, 1 thread).
 
 Workloads: ``convert`` of a 10⁷-row ``.npy`` file to Euler angles (file to
 file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
-``spline`` through 10⁵ unevenly timed keys (chunked keys in, the lazy result
-computed on the workers), with the keys in 4 blocks (Dask's advice: tasks of
-100 ms or so; here ~30 ms each) and in 20 small blocks; see ``SPLINE_CASES``.
+``spline`` (chunked keys in, the lazy result computed on the workers) through
+10⁵ unevenly timed keys (in 4 blocks, Dask's advice being tasks of 100 ms or
+so: here ~25 ms each; and in 20 small blocks) or through 10⁶ keys (a stream
+resampled at its own rate, 4 blocks); see ``SPLINE_CASES``.
 """
 
 import numpy as np
@@ -34,7 +35,7 @@ from quatarray import _jit  # noqa: E402
 
 N_CONVERT = 10_000_000
 CHUNK_CONVERT = 500_000
-N_KEYS, N_SAMPLES = 100_000, 1_000_000
+N_SAMPLES = 1_000_000
 
 
 @pytest.fixture(scope="module", params=[1, 2], ids=["1worker", "2workers"])
@@ -59,12 +60,13 @@ def npy(tmp_path_factory):
     return src, folder / "out.npy"
 
 
-@pytest.fixture(scope="module")
-def stream():
+@pytest.fixture(scope="module", params=[100_000, 1_000_000], ids=["keys1e5", "keys1e6"])
+def stream(request):
+    n_keys = request.param
     rng = np.random.default_rng(0)
-    t = np.cumsum(rng.uniform(0.5, 1.5, N_KEYS))
-    keys = qa.cumprod(qa.from_rotvec(rng.normal(0, 0.1, (N_KEYS, 3))))
-    keys[rng.random(N_KEYS) < 0.2] *= -1
+    t = np.cumsum(rng.uniform(0.5, 1.5, n_keys))
+    keys = qa.cumprod(qa.from_rotvec(rng.normal(0, 0.1, (n_keys, 3))))
+    keys[rng.random(n_keys) < 0.2] *= -1
     nt = np.linspace(t[0], t[-1], N_SAMPLES)
     return t, keys, nt
 
@@ -109,42 +111,49 @@ def test_convert_dask(benchmark, npy, client):
     np.testing.assert_array_equal(np.load(dst, mmap_mode="r")[:1000], qa.as_euler(np.load(src)[:1000], "ZYX"))
 
 
-@pytest.mark.benchmark(group="dask-spline-1e6-samples")
+def _spline_group(benchmark, keys):
+    benchmark.group = f"dask-spline-1e6-samples-from-{len(keys):.0e}-keys"
+
+
 def test_spline_inmemory_1thread(benchmark, stream, one_thread):
     t, keys, nt = stream
+    _spline_group(benchmark, keys)
     benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
 
 
-@pytest.mark.benchmark(group="dask-spline-1e6-samples")
 def test_spline_inmemory_2threads(benchmark, stream):
     t, keys, nt = stream
+    _spline_group(benchmark, keys)
     benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
 
 
-SPLINE_CASES = [  # (keys per block, new times, result)
-    (25_000, "dask", "persisted"),
-    (25_000, "numpy", "persisted"),
-    (25_000, "dask", "gathered"),
-    (5_000, "dask", "persisted"),
+SPLINE_CASES = [  # (key blocks, new times, result)
+    (4, "dask", "persisted"),
+    (4, "numpy", "persisted"),
+    (4, "dask", "gathered"),
+    (20, "dask", "persisted"),
 ]
 
 
-@pytest.mark.benchmark(group="dask-spline-1e6-samples")
-@pytest.mark.parametrize("chunk,new_times,result", SPLINE_CASES,
-                         ids=[f"keys{c}-nt_{n}-{r}" for c, n, r in SPLINE_CASES])
-def test_spline_dask(benchmark, stream, client, chunk, new_times, result):
-    """Keys persisted on the workers in blocks of `chunk`. New times ``dask``: also
+@pytest.mark.parametrize("blocks,new_times,result", SPLINE_CASES,
+                         ids=[f"{b}blocks-nt_{n}-{r}" for b, n, r in SPLINE_CASES])
+def test_spline_dask(benchmark, stream, client, blocks, new_times, result):
+    """Keys persisted on the workers in `blocks` blocks. New times ``dask``: also
     persisted on the workers, in as many blocks as the keys; ``numpy``: an in-memory
     array whose slices travel in the graph. Result ``persisted``: kept in the
     workers' memory (``persist``), as a cluster keeps what it stores or processes further;
     ``gathered``: the 32 MB result comes back to this process (``compute``)."""
     t, keys, _ = stream
+    _spline_group(benchmark, keys)
+    if blocks == 20 and len(keys) > 100_000:
+        pytest.skip("small blocks: measured on the 10⁵ keys")
+    chunk = -(-len(keys) // blocks)
     keys_d = client.persist(da.from_array(keys, chunks=(chunk, 4)))
     distributed.wait(keys_d)
     nt = stream[2]
     times = nt
     if new_times == "dask":
-        times = client.persist(da.from_array(nt, chunks=N_SAMPLES * chunk // N_KEYS))
+        times = client.persist(da.from_array(nt, chunks=-(-N_SAMPLES // blocks)))
         distributed.wait(times)
 
     def run():
