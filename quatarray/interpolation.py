@@ -29,6 +29,11 @@ from ._validate import as_float, check_core, elementwise, scan, shape_error
 
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
+# Runs of fewer samples than RUN_MIN in one segment (keys about as dense as the
+# new times) are gathered, TILE samples at a time, into a column-major tile of
+# their segments' rows and evaluated there as SIMD lanes (see _eval_bezier).
+TILE = 64
+RUN_MIN = 8
 # rows per block of a row loop: prange runs over blocks and the plain inner
 # loop is what LLVM vectorises (a prange loop body itself is not vectorised)
 ROWS = 1024
@@ -156,6 +161,10 @@ def ld1(a, i):
     return a[i]
 
 
+def st1(o, i, v):
+    o[i] = v
+
+
 def ld4flat(a, i):
     return (a[4 * i], a[4 * i + 1], a[4 * i + 2], a[4 * i + 3])
 
@@ -173,6 +182,13 @@ def _ld1(a, i):
     if _flat_ok(a):
         return lambda a, i: flat_load(a, i)
     return ld1
+
+
+@overload(st1, inline="always", jit_options={"cache": CACHE})
+def _st1(o, i, v):
+    if _flat_ok(o):
+        return lambda o, i, v: flat_store(o, i, v)
+    return st1
 
 
 @overload(ld4flat, inline="always", jit_options={"cache": CACHE})
@@ -566,6 +582,61 @@ def _eval_nlerp(times, new_t, seg, out):
             j = e
 
 
+@inline
+def bezier_seg(q0, a, b, q1, c0, c1, c2, t):
+    """Segment value at u = t: the level-1 slerps on the three fixed control arcs, then two levels of slerp."""
+    p01 = arc_slerp(q0, a, c0, t)
+    p12 = arc_slerp(a, b, c1, t)
+    p23 = arc_slerp(b, q1, c2, t)
+    p012 = slerp4_one(p01, p12, t)
+    p123 = slerp4_one(p12, p23, t)
+    return slerp4_one(p012, p123, t)
+
+
+@inline
+def tile_q(tile, c, lane):
+    return (ld1(tile, c * TILE + lane), ld1(tile, (c + 1) * TILE + lane),
+            ld1(tile, (c + 2) * TILE + lane), ld1(tile, (c + 3) * TILE + lane))
+
+
+@inline
+def tile_arc(tile, c, lane):
+    return (ld1(tile, c * TILE + lane), ld1(tile, (c + 1) * TILE + lane), ld1(tile, (c + 2) * TILE + lane),
+            ld1(tile, (c + 3) * TILE + lane), ld1(tile, (c + 4) * TILE + lane))
+
+
+@kernel
+def bezier_tile(tile, u, res, rows, count, out):
+    """Evaluate the `count` samples waiting in a tile (SIMD over its lanes, into `res`
+    column by column), then store them in their rows of `out`."""
+    for lane in range(count):
+        r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
+                       tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), ld1(u, lane))
+        st1(res, lane, r[0])
+        st1(res, TILE + lane, r[1])
+        st1(res, 2 * TILE + lane, r[2])
+        st1(res, 3 * TILE + lane, r[3])
+    for lane in range(count):
+        for c in range(4):
+            out[4 * rows[lane] + c] = res[c * TILE + lane]
+
+
+@kernel
+def bezier_run(seg, n, new_t, j, e, t0, h, out):
+    """Samples j … e − 1, all in the segment of row n of the table (SIMD over the samples)."""
+    x0 = like(seg, 0.0)
+    q0 = seg_q(seg, n, 0)
+    a = seg_q(seg, n, 4)
+    b = seg_q(seg, n, 8)
+    q1 = seg_q(seg, n, 12)
+    # level 1 runs on the three fixed control arcs: only the weights per sample
+    c0 = seg_arc(seg, n, 16)
+    c1 = seg_arc(seg, n, 21)
+    c2 = seg_arc(seg, n, 26)
+    for i in range(j, e):
+        st4flat(out, i, bezier_seg(q0, a, b, q1, c0, c1, c2, like(x0, (ld1(new_t, i) - t0) / h)))
+
+
 @rowloop(rows=1)
 def _eval_bezier(times, new_t, seg, out):
     m = new_t.shape[0]
@@ -574,28 +645,31 @@ def _eval_bezier(times, new_t, seg, out):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
+        # short runs wait in a tile: their segments' rows column by column, u, and the sample
+        tile = np.empty(NSEG * TILE, seg.dtype)
+        u = np.empty(TILE, seg.dtype)
+        res = np.empty(4 * TILE, seg.dtype)
+        rows = np.empty(TILE, np.int64)
+        count = 0
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
             t0 = times[sg]
             h = times[sg + 1] - t0
             n = NSEG * sg
-            q0 = seg_q(seg, n, 0)
-            a = seg_q(seg, n, 4)
-            b = seg_q(seg, n, 8)
-            q1 = seg_q(seg, n, 12)
-            # level 1 runs on the three fixed control arcs: only the weights per sample
-            c0 = seg_arc(seg, n, 16)
-            c1 = seg_arc(seg, n, 21)
-            c2 = seg_arc(seg, n, 26)
-            for i in range(j, e):
-                t = like(x0, (ld1(new_t, i) - t0) / h)
-                p01 = arc_slerp(q0, a, c0, t)
-                p12 = arc_slerp(a, b, c1, t)
-                p23 = arc_slerp(b, q1, c2, t)
-                p012 = slerp4_one(p01, p12, t)
-                p123 = slerp4_one(p12, p23, t)
-                st4flat(out, i, slerp4_one(p012, p123, t))
+            if e - j < RUN_MIN:
+                for i in range(j, e):
+                    for c in range(NSEG):
+                        tile[c * TILE + count] = seg[n + c]
+                    u[count] = like(x0, (new_t[i] - t0) / h)
+                    rows[count] = i
+                    count += 1
+                    if count == TILE:
+                        bezier_tile(tile, u, res, rows, count, out)
+                        count = 0
+            else:
+                bezier_run(seg, n, new_t, j, e, t0, h, out)
             j = e
+        bezier_tile(tile, u, res, rows, count, out)
 
 
 @rowloop(rows=1)

@@ -316,6 +316,40 @@ def test_spline_bezier_even_times_is_segment_formula(rng):
     assert np.allclose(qa.spline(times, keys, times), keys, atol=0)  # through every key
 
 
+def _bezier_reference(times, keys, new):
+    """spline's Bézier value per sample from the public functions: unflipped unit keys,
+    bezier_controls with the key times, bezier on the sample's segment."""
+    q = qa.unflip(qa.normalize(keys))
+    a, b = qa.bezier_controls(q, times)
+    n = np.minimum(np.searchsorted(times, new, side="right") - 1, len(times) - 2)
+    u = (new - times[n]) / (times[n + 1] - times[n])
+    return qa.bezier(q[n], a[n], b[n + 1], q[n + 1], u.astype(keys.dtype))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_spline_bezier_dense_and_sparse_runs(rng, dtype):
+    """Segments holding one sample or a few (evaluated in SIMD tiles) next to segments
+    holding many (evaluated run by run), across blocks of the evaluation loop, in order
+    and shuffled."""
+    k = 3000
+    times = np.cumsum(rng.uniform(0.2, 2.0, k))
+    keys = (smooth_keys(rng, k, 0.3) * rng.choice([-1, 1], k)[:, None]).astype(dtype)
+
+    def within(n, count):
+        return times[n] + (times[n + 1] - times[n]) * np.sort(rng.uniform(0, 1, count))
+
+    # block 0 of the loop (2048 samples): 2040 one-sample segments, then a run of 8
+    # that ends the block while 2040 % 64 samples still wait in a tile
+    parts = [within(n, 1) for n in range(2040)] + [within(2040, 8)]
+    parts += [within(n, rng.choice([0, 1, 2, 7, 8, 30])) for n in range(2041, k - 1)]
+    new = np.concatenate(parts + [times[[0, 5, k - 1]]])
+    tol = 1e-14 if dtype == np.float64 else 2e-6
+    for order in (np.sort(new), rng.permutation(new)):
+        got = qa.spline(times, keys, order)
+        assert got.dtype == dtype
+        np.testing.assert_allclose(got, _bezier_reference(times, keys, order), rtol=0, atol=tol)
+
+
 def test_spline_constant_speed_on_great_circle():
     t = np.arange(10.0)
     keys = qa.from_rotvec(np.outer(t * 0.3, [1, 2, 2]) / 3)  # evenly spaced on one circle
