@@ -718,6 +718,50 @@ def _interval_rates(q, h, body, w):
         w[k, 2] = f * d[3]
 
 
+# Sorted new times go through the table piece by piece: each piece of PIECE
+# samples builds only the rows of the segments it spans (for keys as dense as
+# the samples, a table of about 1 MB that stays in cache) and evaluates its
+# samples from them; the pieces run in parallel.
+PIECE = 4096
+_segments_1 = _segments.serial
+_eval_bezier_1 = _eval_bezier.serial
+_eval_slerp_1 = _eval_slerp.serial
+_eval_nlerp_1 = _eval_nlerp.serial
+_eval_squad_1 = _eval_squad.serial
+
+
+@rowloop(rows=1)
+def _spline_pieces(times, new_t, q, c_out, c_in, kind, method, out):
+    """:func:`spline`'s table and evaluation for sorted `new_t`, piece by piece.
+
+    `kind` as :func:`_segments`; `method` 0 bezier, 1 slerp, 2 nlerp, 3 squad;
+    `out` flat (4m,). Samples are assigned to segments as in the whole table
+    (a piece's last segment ends before the next piece's first sample, except
+    the stream's last segment, which includes times[K−1]).
+    """
+    m = new_t.shape[0]
+    k = times.shape[0]
+    for p in prange((m + PIECE - 1) // PIECE):
+        j0 = p * PIECE
+        j1 = min(m, j0 + PIECE)
+        s0 = min(np.searchsorted(times, new_t[j0], side="right") - 1, k - 2)
+        s1 = min(np.searchsorted(times, new_t[j1 - 1], side="right") - 1, k - 2) + 1
+        seg = np.empty((s1 - s0, NSEG), out.dtype)
+        _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], kind, seg)
+        tt = times[s0 : s1 + 1]
+        nn = new_t[j0:j1]
+        flat = seg.reshape(-1)
+        oo = out[4 * j0 : 4 * j1]
+        if method == 0:
+            _eval_bezier_1(tt, nn, flat, oo)
+        elif method == 1:
+            _eval_slerp_1(tt, nn, flat, oo)
+        elif method == 2:
+            _eval_nlerp_1(tt, nn, flat, oo)
+        else:
+            _eval_squad_1(tt, nn, flat, oo)
+
+
 # --------------------------------------------------------------------------
 # front end helpers
 
@@ -1059,6 +1103,7 @@ def _n_outside(lo, hi, x):
 
 
 _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
+_METHOD = {"bezier": 0, "slerp": 1, "nlerp": 2, "squad": 3}
 
 
 def _plan_times(t_raw, nt_raw, index0=0):
@@ -1141,18 +1186,21 @@ def spline(times, keys, new_times, method="bezier"):
     from .algebra import normalize
 
     q = unflip(normalize(q))
-    seg = np.empty((k - 1, NSEG), q.dtype)
+    c_out = c_in = q  # slerp, nlerp: no controls (the table's columns 4-11 repeat the keys)
+    kind = 0
     if method == "bezier":
-        a, b = bezier_controls(q, t)
-        _segments(q, a, b, 1, seg)
+        c_out, c_in = bezier_controls(q, t)
+        kind = 1
     elif method == "squad":
-        s = squad_controls(q)
-        _segments(q, s, s, 2, seg)
-    else:
-        _segments(q, q, q, 0, seg)  # no controls: columns 4-11 repeat the keys, 21-30 are unused
+        c_out = c_in = squad_controls(q)
+        kind = 2
     m = flat_nt.shape[0]
     out = np.empty((m, 4), q.dtype)
-    if m:
+    if m > 1 and (flat_nt[1:] >= flat_nt[:-1]).all():
+        _spline_pieces(t, flat_nt, q, c_out, c_in, kind, _METHOD[method], out.reshape(-1))
+    elif m:
+        seg = np.empty((k - 1, NSEG), q.dtype)
+        _segments(q, c_out, c_in, kind, seg)
         _SPLINE[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
 

@@ -344,10 +344,19 @@ def test_spline_bezier_dense_and_sparse_runs(rng, dtype):
     parts += [within(n, rng.choice([0, 1, 2, 7, 8, 30])) for n in range(2041, k - 1)]
     new = np.concatenate(parts + [times[[0, 5, k - 1]]])
     tol = 1e-14 if dtype == np.float64 else 2e-6
-    for order in (np.sort(new), rng.permutation(new)):
+    for order in (np.sort(new), rng.permutation(new)):  # sorted: table built piece by piece
         got = qa.spline(times, keys, order)
         assert got.dtype == dtype
         np.testing.assert_allclose(got, _bezier_reference(times, keys, order), rtol=0, atol=tol)
+    # every key time twice: pieces of 4096 samples start and end on key times; the
+    # pieces (sorted) give what the whole table (reversed order) gives, bit for bit
+    unit = np.repeat(qa.unflip(qa.normalize(keys)), 2, axis=0)
+    at_keys = np.repeat(times, 2)
+    for method in ("bezier", "slerp", "nlerp", "squad"):
+        got = qa.spline(times, keys, at_keys, method=method)
+        np.testing.assert_array_equal(got, qa.spline(times, keys, at_keys[::-1], method=method)[::-1])
+        if method != "nlerp":  # nlerp divides by a norm of about 1: not exact
+            np.testing.assert_array_equal(got, unit)
 
 
 def test_spline_constant_speed_on_great_circle():
