@@ -117,6 +117,20 @@ def rowloop(fn=None, *, rows=0, parallel=True):
     return RowLoop(fn, rows=rows, parallel=parallel)
 
 
+def specialise(fn, suffix, **names):
+    """A copy of the plain function `fn` with the global `names` rebound (another
+    kernel to call, say), named ``fn.__name__ + suffix``: its own qualname gives it
+    its own cache file, and each copy compiles only what it calls. The copy sees a
+    snapshot of the module's globals taken now."""
+    scope = dict(fn.__globals__)
+    scope.update(names)
+    copy = _pytypes.FunctionType(fn.__code__, scope, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
+    copy.__qualname__ = fn.__qualname__ + suffix
+    copy.__module__ = fn.__module__
+    copy.__doc__ = fn.__doc__
+    return copy
+
+
 def kernel(fn=None, *, parallel=False):
     """Compile a whole-array kernel that is not a plain row loop (scans, searches)."""
     if fn is None:

@@ -23,7 +23,7 @@ from . import _elements as E
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop
+from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
 from ._trig import half_arc, sincos
 from ._validate import as_float, check_core, elementwise, scan, shape_error
 
@@ -724,20 +724,17 @@ def _interval_rates(q, h, body, w):
 # samples from them; the pieces run in parallel.
 PIECE = 4096
 _segments_1 = _segments.serial
-_eval_bezier_1 = _eval_bezier.serial
-_eval_slerp_1 = _eval_slerp.serial
-_eval_nlerp_1 = _eval_nlerp.serial
-_eval_squad_1 = _eval_squad.serial
+_eval_1 = _eval_bezier.serial  # rebound in each method's copy (_PIECES)
 
 
-@rowloop(rows=1)
-def _spline_pieces(times, new_t, q, c_out, c_in, kind, method, out):
+def _spline_pieces(times, new_t, q, c_out, c_in, kind, out):
     """:func:`spline`'s table and evaluation for sorted `new_t`, piece by piece.
 
-    `kind` as :func:`_segments`; `method` 0 bezier, 1 slerp, 2 nlerp, 3 squad;
-    `out` flat (4m,). Samples are assigned to segments as in the whole table
-    (a piece's last segment ends before the next piece's first sample, except
-    the stream's last segment, which includes times[K−1]).
+    `kind` as :func:`_segments`; `out` flat (4m,); ``_eval_1`` is the serial
+    evaluation loop of the method (one compiled copy per method, see
+    ``_PIECES``). Samples are assigned to segments as in the whole table (a
+    piece's last segment ends before the next piece's first sample, except the
+    stream's last segment, which includes times[K−1]).
     """
     m = new_t.shape[0]
     k = times.shape[0]
@@ -748,18 +745,7 @@ def _spline_pieces(times, new_t, q, c_out, c_in, kind, method, out):
         s1 = min(np.searchsorted(times, new_t[j1 - 1], side="right") - 1, k - 2) + 1
         seg = np.empty((s1 - s0, NSEG), out.dtype)
         _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], kind, seg)
-        tt = times[s0 : s1 + 1]
-        nn = new_t[j0:j1]
-        flat = seg.reshape(-1)
-        oo = out[4 * j0 : 4 * j1]
-        if method == 0:
-            _eval_bezier_1(tt, nn, flat, oo)
-        elif method == 1:
-            _eval_slerp_1(tt, nn, flat, oo)
-        elif method == 2:
-            _eval_nlerp_1(tt, nn, flat, oo)
-        else:
-            _eval_squad_1(tt, nn, flat, oo)
+        _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[4 * j0 : 4 * j1])
 
 
 # --------------------------------------------------------------------------
@@ -1103,7 +1089,7 @@ def _n_outside(lo, hi, x):
 
 
 _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
-_METHOD = {"bezier": 0, "slerp": 1, "nlerp": 2, "squad": 3}
+_PIECES = {m: rowloop(rows=1)(specialise(_spline_pieces, f"_{m}", _eval_1=ev.serial)) for m, ev in _SPLINE.items()}
 
 
 def _plan_times(t_raw, nt_raw, index0=0):
@@ -1197,7 +1183,7 @@ def spline(times, keys, new_times, method="bezier"):
     m = flat_nt.shape[0]
     out = np.empty((m, 4), q.dtype)
     if m > 1 and (flat_nt[1:] >= flat_nt[:-1]).all():
-        _spline_pieces(t, flat_nt, q, c_out, c_in, kind, _METHOD[method], out.reshape(-1))
+        _PIECES[method](t, flat_nt, q, c_out, c_in, kind, out.reshape(-1))
     elif m:
         seg = np.empty((k - 1, NSEG), q.dtype)
         _segments(q, c_out, c_in, kind, seg)
