@@ -379,30 +379,54 @@ def _cumprod_apply(local, carry, axis):
         return qa.multiply(carry, local)
 
 
-# unflip: local flips, then one sign per chunk carried forward
+# unflip: local flips, then one sign per chunk carried forward. The carry stops
+# where the chain breaks: a row whose dot product with the row before is 0 or nan
+# (a zero or non-finite row, or an exact quarter turn) is kept as it is whatever
+# the sign before it, so from there on the block's own flips are the global ones.
+
+
+def _sign_breaks(local, axis):
+    """How many leading rows of a locally unflipped block (per line along `axis`,
+    shaped like a row with a last axis of 1) take the sign carried into the block:
+    up to the first row whose dot product with the row before is 0 or nan."""
+    n = local.shape[axis]
+    a = np.moveaxis(local, axis, 0)
+    d = ((a[1:, ..., 0] * a[:-1, ..., 0] + a[1:, ..., 1] * a[:-1, ..., 1]) + a[1:, ..., 2] * a[:-1, ..., 2]) \
+        + a[1:, ..., 3] * a[:-1, ..., 3]  # the order of the kernels' dot product
+    broken = ~((d < 0) | (d > 0))
+    reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n) if n > 1 else np.full(a.shape[1:-1], n)
+    return np.expand_dims(np.asarray(reach), (axis, -1))
 
 
 def _unflip_local(block, axis):
     with _serial():
-        return qa.unflip(block, axis=axis)
+        local = qa.unflip(block, axis=axis)
+    return local, _sign_breaks(local, axis)
 
 
 def _unflip_summary(local, axis):
-    return (_rows(local, 0, axis), _rows(local, -1, axis)) if local.shape[axis] else None
+    local, reach = local
+    n = local.shape[axis]
+    return (_rows(local, 0, axis), _rows(local, -1, axis), reach == n) if n else None
 
 
 def _unflip_carry(carry, prev, cur):
     # carry: True where chunk `prev` was negated; returns the same for chunk `cur`.
-    last = prev[1] if carry is None else np.where(carry, -prev[1], prev[1])
+    # prev[2]: whether prev's carry reaches its last row (no break in the chain)
+    last = prev[1] if carry is None else np.where(carry & prev[2], -prev[1], prev[1])
     with _serial():
         d = qa.dot(cur[0], last)
     return (np.asarray(d) < 0)[..., None]
 
 
 def _unflip_apply(local, carry, axis):
+    local, reach = local
     if carry is None:
         return local
-    return np.where(carry, -local, local)
+    shape = [1] * local.ndim
+    shape[axis] = local.shape[axis]
+    row = np.arange(local.shape[axis]).reshape(shape)
+    return np.where(carry & (row < reach), -local, local)
 
 
 def _carry_all(carry_fn, summaries):
@@ -487,8 +511,11 @@ def unflip(q, axis=0):
     A prefix scan: each chunk is unflipped on its own (in parallel), then one
     sign per chunk is carried across the borders (the dot product of a
     chunk's first row with the previous chunk's last row, already signed),
-    and chunks whose sign is −1 are negated. Equal to the in-memory result
-    bitwise, whatever the chunking.
+    and chunks whose sign is −1 are negated up to the first row whose dot
+    product with the row before is 0 or nan (a zero or non-finite row, an
+    exact quarter turn: the in-memory scan keeps that row, and so the rest,
+    whatever came before). Equal to the in-memory result bitwise, whatever
+    the chunking.
 
     Examples
     --------
@@ -963,9 +990,10 @@ def _materialise(x, name):
 
 def _flip_summary(block, rows):
     """What the sign scan needs of one key block: its first row, its last row after
-    the block is unflipped on its own, and whether that negated each of `rows` (the
-    windows' first rows in this block; keys normalised first, as :func:`quatarray.spline`
-    does). One pass, nothing the size of the block written."""
+    the block is unflipped on its own, whether that negated each of `rows` (the
+    windows' first rows in this block), and how many leading rows take the sign
+    carried into the block (see :func:`_sign_breaks`); keys normalised first, as
+    :func:`quatarray.spline` does. One pass, nothing the size of the block written."""
     from .interpolation import _sign_summary
 
     if not len(block):
@@ -973,8 +1001,9 @@ def _flip_summary(block, rows):
     block = np.ascontiguousarray(block)
     ends = np.empty((2, 4), block.dtype)
     negated = np.zeros(len(rows), np.bool_)
-    _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
-    return ends[:1], ends[1:], dict(zip(rows, negated.tolist()))
+    reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
+    full = np.array([[reach == len(block)]])
+    return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist()))
 
 
 def _window_flips(summaries, starts, firsts):
@@ -983,12 +1012,14 @@ def _window_flips(summaries, starts, firsts):
     One task: the chunk signs carried across the borders (as :func:`unflip`
     does), then each window's first row looked up in its chunk's local flips.
     """
-    carries = _carry_all(_unflip_carry, [None if f is None else f[:2] for f in summaries])
+    carries = _carry_all(_unflip_carry, [None if f is None else f[:3] for f in summaries])
     out = []
     for w0 in firsts:
         c = int(np.searchsorted(starts, w0, side="right")) - 1
-        chunk_sign = bool(np.ravel(carries[c])[0]) if carries[c] is not None else False
-        out.append(chunk_sign != summaries[c][2][w0 - starts[c]])
+        _, _, _, reach, negated = summaries[c]
+        row = w0 - starts[c]
+        carried = carries[c] is not None and bool(np.ravel(carries[c])[0]) and row < reach
+        out.append(carried != negated[row])
     return out
 
 
@@ -1105,10 +1136,12 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         flip = (operator.getitem, fname, len(firsts))
         dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, part, method)
         firsts.append(w0)
-    block_of = np.searchsorted(starts, firsts, side="right") - 1
+    rows = [set() for _ in range(x.numblocks[0])]  # the windows' first rows, block by block
+    for w0 in firsts:
+        c = int(np.searchsorted(starts, w0, side="right")) - 1
+        rows[c].add(int(w0 - starts[c]))
     for i in range(x.numblocks[0]):
-        rows = sorted({int(w0 - starts[i]) for w0, c in zip(firsts, block_of) if c == i})
-        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), rows)
+        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]))
     dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))

@@ -363,12 +363,19 @@ def _sign_summary(q, rows, ends, negated):
     """What a blocked sign scan needs of one block of raw keys, seen as :func:`spline`
     sees them (normalised, then unflipped from the block's first row), without
     writing the block: ``ends`` = its first and last rows, ``negated[j]`` whether
-    row ``rows[j]`` (ascending) was negated."""
+    row ``rows[j]`` (ascending) was negated. Returns how many leading rows a sign
+    carried into the block reaches: up to the first row whose dot product with the
+    row before is 0 or nan (that row is kept as it is whatever came before)."""
+    zero = like(ends, 0.0)
     prev = E.qnormalize(E.load4(q, 0))
+    reach = q.shape[0]
     j = 0
     for i in range(q.shape[0]):
         cur = E.qnormalize(E.load4(q, i))
-        neg = i > 0 and E.qdot(cur, prev) < like(ends, 0.0)  # as _unflip
+        d = E.qdot(cur, prev)
+        neg = i > 0 and d < zero  # as _unflip
+        if i > 0 and reach == q.shape[0] and not (d < zero or d > zero):
+            reach = i
         if neg:
             cur = E.qneg(cur)
         if i == 0:
@@ -378,6 +385,7 @@ def _sign_summary(q, rows, ends, negated):
             j += 1
         prev = cur
     E.store4(ends, 1, prev)
+    return reach
 
 
 # ---- spline: per-segment tables, segment search, batched evaluation ----

@@ -331,6 +331,41 @@ def test_unflip_flip_exactly_on_borders(client):
     assert same(run(client, qd.unflip(da.from_array(q3, chunks=(8, 1, 4)))), expect)
 
 
+def _broken_chain(seed=5):
+    """A key stream whose sign chain breaks: a zero row, a nan row and an exact quarter
+    turn (dot product 0), each with flips before and after it."""
+    q = stream(40, seed=seed)
+    q[9] = 0.0
+    q[21] = np.nan
+    q[30], q[31] = [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]
+    q[[8, 10, 20, 22, 29, 32]] *= -1
+    return q
+
+
+@needs("interpolation")
+def test_unflip_where_the_sign_chain_breaks(client):
+    """After a row whose dot product with the row before is 0 or nan, the in-memory
+    unflip keeps rows as they are: the sign carried into a chunk stops there."""
+    q = _broken_chain()
+    expect = qa.unflip(q)
+    for rows in (1, 3, 4, 7, 9, 11):
+        assert same(run(client, qd.unflip(chunked(q, rows))), expect), rows
+    q3 = np.stack([q, -q[::-1]], axis=1)
+    assert same(run(client, qd.unflip(da.from_array(q3, chunks=(6, 1, 4)))), qa.unflip(q3))
+
+
+@needs("interpolation")
+@pytest.mark.parametrize("method", ["slerp", "bezier"])
+def test_spline_where_the_sign_chain_breaks(client, method):
+    q = _broken_chain()
+    t = np.arange(40.0)
+    nt = np.linspace(0, 39, 400)
+    expect = qa.spline(t, q, nt, method=method)
+    for rows in (2, 4, 7, 11):
+        got = run(client, qd.spline(t, chunked(q, rows), nt, method=method))
+        np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13, err_msg=str(rows))  # nan where memory has nan
+
+
 # --------------------------------------------------------------------------
 # neighbours across chunk borders: spline and angular_velocity
 
