@@ -1042,6 +1042,7 @@ def _output_chunks(nt, t, key_chunks, chunks, given):
     elif m and np.all(np.diff(nt) >= 0):
         # one output block per key block: new times split where the key blocks start
         starts = np.cumsum((0,) + tuple(key_chunks))[1:-1]
+        starts = starts[starts < t.shape[0]]  # not the ends of empty trailing chunks
         cuts = np.searchsorted(nt, t[starts], side="left")
         edges = np.unique(np.concatenate(([0], cuts, [m])))
         sizes = list(np.diff(edges))

@@ -766,6 +766,7 @@ def test_empty_and_unknown_chunks(client):
         assert same(run(client, qd.unflip(x)), qa.unflip(q))
         np.testing.assert_allclose(run(client, qd.cumprod(x)), qa.cumprod(q), rtol=0, atol=1e-13)
         np.testing.assert_allclose(run(client, qd.spline(t, x, nt, chunks=10)), qa.spline(t, q, nt), atol=1e-13)
+        np.testing.assert_allclose(run(client, qd.spline(t, x, nt)), qa.spline(t, q, nt), atol=1e-13)  # blocks per key block
     x = chunked(q, 6)
     with pytest.raises(ValueError, match=r"known chunk sizes.*q\.compute_chunk_sizes\(\)"):
         qd.normalize(x[x[:, 0] > 0])

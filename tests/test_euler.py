@@ -319,7 +319,7 @@ def test_round_trip(v, seq):
 def test_lock_error_bound(seq, rng):
     # X(α) Y(π - δ) X(γ) read back with γ = 0 differs from the input by the
     # commutator of Y(δ) and X(γ): 2δ·|sin(γ/2)|, up to 2δ at γ = ±π
-    n = 20000
+    n = 10000
     a = rng.uniform(-np.pi, np.pi, (n, 3))
     proper = seq[0].lower() == seq[2].lower()
     sing = rng.choice([0.0, np.pi] if proper else [-np.pi / 2, np.pi / 2], n)
