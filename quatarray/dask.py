@@ -391,11 +391,13 @@ def _sign_breaks(local, axis):
     up to the first row whose dot product with the row before is 0 or nan."""
     n = local.shape[axis]
     a = np.moveaxis(local, axis, 0)
-    d = ((a[1:, ..., 0] * a[:-1, ..., 0] + a[1:, ..., 1] * a[:-1, ..., 1]) + a[1:, ..., 2] * a[:-1, ..., 2]) \
-        + a[1:, ..., 3] * a[:-1, ..., 3]  # the order of the kernels' dot product
+    if n < 2:
+        return np.expand_dims(np.full(a.shape[1:-1], n), (axis, -1))
+    with _serial():
+        d = qa.dot(a[1:], a[:-1])  # as unflip's kernel (its sign aside: 0 and nan stay)
     broken = ~((d < 0) | (d > 0))
-    reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n) if n > 1 else np.full(a.shape[1:-1], n)
-    return np.expand_dims(np.asarray(reach), (axis, -1))
+    reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n)
+    return np.expand_dims(reach, (axis, -1))
 
 
 def _unflip_local(block, axis):

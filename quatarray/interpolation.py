@@ -535,6 +535,12 @@ def seg_q(seg, n, c):
     return seg[n + c], seg[n + c + 1], seg[n + c + 2], seg[n + c + 3]
 
 
+@inline
+def seg_keys(seg, n):
+    """The four quaternions of a table row: q_n, its two controls, q_{n+1}."""
+    return seg_q(seg, n, 0), seg_q(seg, n, 4), seg_q(seg, n, 8), seg_q(seg, n, 12)
+
+
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
 # 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`fixed_arc`) at 16, 21, 26
 # (written by `_segments`).
@@ -633,10 +639,7 @@ def bezier_tile(tile, u, res, rows, count, out):
 def bezier_run(seg, n, new_t, j, e, t0, h, out):
     """Samples j … e − 1, all in the segment of row n of the table (SIMD over the samples)."""
     x0 = like(seg, 0.0)
-    q0 = seg_q(seg, n, 0)
-    a = seg_q(seg, n, 4)
-    b = seg_q(seg, n, 8)
-    q1 = seg_q(seg, n, 12)
+    q0, a, b, q1 = seg_keys(seg, n)
     # level 1 runs on the three fixed control arcs: only the weights per sample
     c0 = seg_arc(seg, n, 16)
     c1 = seg_arc(seg, n, 21)
@@ -693,10 +696,7 @@ def _eval_squad(times, new_t, seg, out):
             t0 = times[sg]
             h = times[sg + 1] - t0
             n = NSEG * sg
-            q0 = seg_q(seg, n, 0)
-            s0 = seg_q(seg, n, 4)
-            s1 = seg_q(seg, n, 8)
-            q1 = seg_q(seg, n, 12)
+            q0, s0, s1, q1 = seg_keys(seg, n)
             c0 = seg_arc(seg, n, 16)
             c1 = seg_arc(seg, n, 21)
             for i in range(j, e):
