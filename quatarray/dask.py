@@ -961,8 +961,13 @@ def _concat_rows(parts):
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
-def _window(x, a, b):
-    """A task expression for rows [a, b) of `x` (chunked along axis 0 only), across its blocks."""
+def _window(x, a, b, dsk):
+    """A task expression for rows [a, b) of `x` (chunked along axis 0 only), across its blocks.
+
+    Rows taken from part of a block are cut by a small task of their own, added
+    to `dsk`: it runs where the block is kept, so only those rows travel to the
+    worker that needs them, not the whole block.
+    """
     starts = np.cumsum((0,) + x.chunks[0])
     first = int(np.searchsorted(starts, a, side="right")) - 1
     parts = []
@@ -973,8 +978,10 @@ def _window(x, a, b):
         key = (x.name, i) + (0,) * (x.ndim - 1)
         if a <= lo and hi <= b:
             parts.append(key)
-        else:
-            parts.append((operator.getitem, key, slice(max(a, lo) - lo, min(b, hi) - lo)))
+            continue
+        cut = (f"rows-{x.name}", i, int(max(a, lo) - lo), int(min(b, hi) - lo))
+        dsk[cut] = (operator.getitem, key, slice(*cut[2:]))
+        parts.append(cut)
     return (_concat_rows, parts)
 
 
@@ -1137,7 +1144,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         seg = np.clip(np.searchsorted(t, span, side="right") - 1, 0, k - 2)
         w0, w1 = max(0, int(seg[0]) - 1), min(k, int(seg[1]) + 3)
         flip = (operator.getitem, fname, len(firsts))
-        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1), flip, part, method)
+        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1, dsk), flip, part, method)
         firsts.append(w0)
     rows = [set() for _ in range(x.numblocks[0])]  # the windows' first rows, block by block
     for w0 in firsts:
@@ -1234,7 +1241,7 @@ def angular_velocity(q, times, frame="space"):
         b = a + size
         w0, w1 = max(0, a - _AV_DEPTH), min(n, b + _AV_DEPTH)
         dsk[(name, j, 0)] = (
-            _angular_velocity_task, _window(x, w0, w1), _window(tt, w0, w1), frame, a - w0, b - w0
+            _angular_velocity_task, _window(x, w0, w1, dsk), _window(tt, w0, w1, dsk), frame, a - w0, b - w0
         )
         a = b
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x, tt])

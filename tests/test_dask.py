@@ -458,6 +458,33 @@ def test_spline_stays_lazy_in_the_keys():
         lazy.compute(scheduler="sync")
 
 
+def _whole_blocks_and_cut_rows(lazy, x):
+    """Per output block of `lazy`: the blocks of `x` it takes whole, and how many rows it
+    takes from parts of other blocks (cut where those blocks are)."""
+    graph = dict(lazy.__dask_graph__())
+    deps = lazy.__dask_graph__().get_all_dependencies()
+    out = []
+    for key in lazy.__dask_keys__():
+        key = key[0]
+        whole = sorted(d[1] for d in deps[key] if d[0] == x.name)
+        cut = [d for d in deps[key] if d[0] == f"rows-{x.name}"]
+        assert all(deps[d] == {(x.name, d[1], 0)} for d in cut) and all(graph[d] is not None for d in cut)
+        out.append((whole, sum(d[3] - d[2] for d in cut)))
+    return out
+
+
+@needs("interpolation")
+def test_neighbour_rows_travel_without_their_blocks():
+    """A task needing a few rows of a neighbouring block depends on a small task that cuts
+    them (run where the block is), not on the whole block: a worker receives those rows only."""
+    t, keys = keyed(100, seed=8)
+    x = chunked(keys, 25)
+    lazy = qd.spline(t, x, np.linspace(t[0], t[-1], 1000))
+    assert _whole_blocks_and_cut_rows(lazy, x) == [([0], 2), ([1], 3), ([2], 3), ([3], 1)]
+    lazy = qd.angular_velocity(x, t)
+    assert _whole_blocks_and_cut_rows(lazy, x) == [([0], 2), ([1], 4), ([2], 4), ([3], 2)]
+
+
 @needs("interpolation")
 @pytest.mark.parametrize("rows", [1, 9, 200])
 @pytest.mark.parametrize("frame", ["space", "body"])
