@@ -6,6 +6,8 @@ through here first. Every shape error uses one template::
     Expected `q` to have shape (..., 4), got (10, 3).
 """
 
+import contextlib
+import contextvars
 import math
 
 import numpy as np
@@ -23,6 +25,34 @@ def _spec(core):
 def shape_error(name, expected, got):
     """The one message template for a bad shape."""
     return ValueError(f"Expected `{name}` to have shape {expected}, got {tuple(got)}.")
+
+
+# Where the arrays a function is given start in a larger array: set by quatarray.dask
+# for each block, so that messages name the row of the whole array.
+_ORIGIN = contextvars.ContextVar("quatarray_origin", default=())
+
+
+@contextlib.contextmanager
+def origin(start):
+    """Messages from :func:`where` inside this block count rows from `start`
+    (the first index, along the leading axes, of the arrays being passed)."""
+    token = _ORIGIN.set(tuple(int(k) for k in start))
+    try:
+        yield
+    finally:
+        _ORIGIN.reset(token)
+
+
+def where(flat_index, lead):
+    """The item `flat_index` of a batch of leading shape `lead`, as messages name it:
+    ``row 3``, ``index (1, 2)``, or ``the single input`` (counted in the whole array
+    inside a block: see :func:`origin`)."""
+    if len(lead) == 0:
+        return "the single input"
+    index = np.unravel_index(int(flat_index), lead)
+    start = _ORIGIN.get() or (0,) * len(lead)
+    index = tuple(int(i) + k for i, k in zip(index, start))
+    return f"row {index[0]}" if len(lead) == 1 else f"index {index}"
 
 
 def is_weak(x):

@@ -23,7 +23,7 @@ from . import _elements as E
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
 from ._trig import half_arc, sincos
-from ._validate import as_float, check_core, elementwise, is_weak, shape_error
+from ._validate import as_float, check_core, elementwise, is_weak, shape_error, where
 
 Q = (4,)
 V = (3,)
@@ -352,14 +352,6 @@ def _with_status(kernel, inputs, out_cores, out=None):
     return res, (status[0] if status else -1)
 
 
-def _row_name(index, lead):
-    if len(lead) == 0:
-        return "the single input"
-    if len(lead) == 1:
-        return f"row {index}"
-    return f"index {tuple(int(k) for k in np.unravel_index(index, lead))}"
-
-
 def _radians(x, name, degrees):
     """`x` as a float array, converted from degrees if asked (a Python float
     factor, so float32 stays float32). The kernels work in radians only:
@@ -453,7 +445,7 @@ def from_matrix(m, assume_valid=False, out=None):
         a = np.broadcast_to(a, lead + M3).reshape((-1,) + M3)
         raise ValueError(
             "Expected `m` to hold rotation matrices with a positive determinant; "
-            f"{_row_name(bad, lead)} has determinant {np.linalg.det(a[bad]):.6g} "
+            f"{where(bad, lead)} has determinant {np.linalg.det(a[bad]):.6g} "
             f"(left-handed or degenerate): {a[bad].tolist()}."
         )
     return res
@@ -590,7 +582,7 @@ def from_axis_angle(axis, angle, degrees=False, out=None):
     res, bad = _with_status(_from_axis_angle, inputs, [Q], out)
     if bad >= 0:
         raise ValueError(
-            f"Expected `axis` to be non-zero vectors; {_row_name(bad, res.shape[:-1])} is (0, 0, 0)."
+            f"Expected `axis` to be non-zero vectors; {where(bad, res.shape[:-1])} is (0, 0, 0)."
         )
     return res
 

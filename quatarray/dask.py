@@ -68,7 +68,7 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
 import quatarray as qa
 
 from . import _jit
-from ._validate import as_float, check_core, is_weak, leading, result_dtype
+from ._validate import as_float, check_core, is_weak, leading, origin, result_dtype
 
 Q, V, M3 = (4,), (3,), (3, 3)
 
@@ -114,8 +114,7 @@ class _Block:
     """The per-block call of a public function (picklable by value: a name and constants).
 
     With `located`, the first argument is the block's first index along the
-    leading axes, and a ``row k`` or ``index (i, j)`` in an error message is
-    turned from the block's numbering into the whole array's.
+    leading axes: a row an error message names is counted in the whole array.
     """
 
     def __init__(self, name, arrays, consts, nout, located=False):
@@ -128,13 +127,8 @@ class _Block:
             start, blocks = blocks[0], blocks[1:]
         kwargs = dict(self.consts)
         kwargs.update(zip(self.arrays, blocks))
-        try:
-            with _serial():
-                return _public(self.name)(**kwargs)
-        except ValueError as exc:
-            if not any(start):
-                raise
-            raise ValueError(_renumber(str(exc), start)) from None
+        with _serial(), origin(start):
+            return _public(self.name)(**kwargs)
 
     def __dask_tokenize__(self):
         return (type(self).__name__, self.name, self.arrays, sorted(self.consts.items(), key=str), self.nout,
@@ -142,18 +136,6 @@ class _Block:
 
     def __repr__(self):
         return f"quatarray.{self.name}"
-
-
-def _renumber(msg, start):
-    """`msg` with the in-memory functions' ``row k`` / ``index (i, j, …)`` shifted by `start`."""
-    import re
-
-    if len(start) == 1:
-        return re.sub(r"\brow (\d+)", lambda m: f"row {int(m.group(1)) + start[0]}", msg)
-    return re.sub(
-        r"\bindex \(([\d, ]+)\)",
-        lambda m: f"index {tuple(int(k) + o for k, o in zip(m.group(1).split(','), start))}", msg,
-    )
 
 
 def _float_rule(dtypes):

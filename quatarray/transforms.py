@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype
+from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, load33, matmul, matvec, scale9, store33, transpose
 from .conversions import from_matrix
 
@@ -204,15 +204,6 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
 # helpers for the wrappers
 
 
-def _row_name(lead, flat_index):
-    """'row 3' for 1-D batches, 'row (1, 2)' for more leading dims, '' for one transform."""
-    if len(lead) == 0:
-        return ""
-    if len(lead) == 1:
-        return f" row {int(flat_index)}"
-    return f" row {tuple(int(k) for k in np.unravel_index(flat_index, lead))}"
-
-
 def _shape_arg(n):
     if n is None:
         return ()
@@ -261,7 +252,7 @@ def _polar(m4, rtol):
         if bad.size:
             k = bad[0]
             raise ValueError(
-                f"Expected `m4` to be affine with last row (0, 0, 0, 1);{_row_name(lead, k)} "
+                f"Expected `m4` to be affine with last row (0, 0, 0, 1); {where(k, lead)} "
                 f"has {tuple(float(x) for x in bottom[k])}."
             )
     a = np.array(flat[:, :3, :3], dtype=dtype)
@@ -349,7 +340,7 @@ class _Transform:
     def _check(self, lead, q, x):
         zero = np.flatnonzero(~np.any(q.reshape(-1, 4) != 0, axis=1))
         if zero.size:
-            raise ValueError(f"Expected `q` to be non-zero;{_row_name(lead, zero[0])} is the zero quaternion.")
+            raise ValueError(f"Expected `q` to be non-zero; {where(zero[0], lead)} is the zero quaternion.")
 
     @classmethod
     def _new(cls, v, q, x):
@@ -609,7 +600,7 @@ class VQS(_Transform):
         bad = np.flatnonzero(x.reshape(-1) <= 0)
         if bad.size:
             k = bad[0]
-            raise ValueError(f"Expected `s` to be positive;{_row_name(lead, k)} has s = {x.reshape(-1)[k]}.")
+            raise ValueError(f"Expected `s` to be positive; {where(k, lead)} has s = {x.reshape(-1)[k]}.")
 
     @property
     def s(self):
@@ -699,8 +690,8 @@ class VQS(_Transform):
                 k = idx[0]
                 sv = ", ".join(f"{x:.6g}" for x in sig[k])
                 raise ValueError(
-                    "Expected `m4` to be a positive uniform scale times a rotation plus a translation;"
-                    f"{_row_name(lead, k)} has {what} (singular values {sv})."
+                    "Expected `m4` to be a positive uniform scale times a rotation plus a translation; "
+                    f"{where(k, lead)} has {what} (singular values {sv})."
                 )
         return cls._new(v.reshape(lead + (3,)), q.reshape(lead + (4,)), s.astype(dtype).reshape(lead))
 
@@ -774,7 +765,7 @@ class VQM(_Transform):
         if bad.size:
             k = bad[0]
             raise ValueError(
-                f"Expected `M` to be invertible;{_row_name(self.shape, k)} is singular "
+                f"Expected `M` to be invertible; {where(k, self.shape)} is singular "
                 f"(|det M| / (|row0| |row1| |row2|) = {ratio[k]:.3g})."
             )
         return VQM._new(*_as_arrays(v, q, m))

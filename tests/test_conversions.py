@@ -8,6 +8,7 @@ from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
 import quatarray as qa
+from quatarray._validate import origin
 
 R = lambda q: Rotation.from_quat(np.asarray(q, float), scalar_first=True)  # noqa: E731
 SQ = lambda r: r.as_quat(scalar_first=True)  # noqa: E731
@@ -124,6 +125,10 @@ def test_from_matrix_rejects_non_positive_determinant(rng):
         qa.from_matrix(-np.eye(3))
     m[7] = np.diag([1.0, 1.0, -1.0])  # a reflection
     with pytest.raises(ValueError, match="determinant"):
+        qa.from_matrix(m)
+    with origin((100, 20)), pytest.raises(ValueError, match=r"index \(101, 22\)"):
+        qa.from_matrix(m.reshape(2, 5, 3, 3))  # inside a block of a larger array (quatarray.dask)
+    with origin((100,)), pytest.raises(ValueError, match=r"row 107 has"):
         qa.from_matrix(m)
     assert qa.from_matrix(m[:7]).shape == (7, 4)
     # non-finite matrices propagate as nan, they do not raise

@@ -367,9 +367,9 @@ def test_singular_inverse_names_row(rng):
     with pytest.raises(ValueError, match="row 2 is singular"):
         t.inverse()
     t2 = VQM(np.zeros(3), [1, 0, 0, 0], m.reshape(2, 2, 3, 3))
-    with pytest.raises(ValueError, match=r"row \(1, 0\) is singular"):
+    with pytest.raises(ValueError, match=r"index \(1, 0\) is singular"):
         t2.inverse()
-    with pytest.raises(ValueError, match="singular"):
+    with pytest.raises(ValueError, match="invertible; the single input is singular"):
         VQM(M=np.zeros((3, 3))).inverse()
 
 
@@ -493,7 +493,7 @@ def test_validation_errors():
         VQM(q=[0, 0, 0, 0])
     s = np.ones((2, 3))
     s[1, 2] = -1
-    with pytest.raises(ValueError, match=r"`s` to be positive; row \(1, 2\) has s = -1"):
+    with pytest.raises(ValueError, match=r"`s` to be positive; index \(1, 2\) has s = -1"):
         VQS(s=s)
     with pytest.raises(ValueError, match="`s` to be positive"):
         VQS(s=0)
