@@ -18,7 +18,8 @@ file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
 ``spline`` (chunked keys in, the lazy result computed on the workers) through
 10⁵ unevenly timed keys (in 4 blocks, Dask's advice being tasks of 100 ms or
 so: here ~25 ms each; and in 20 small blocks) or through 10⁶ keys (a stream
-resampled at its own rate, 4 blocks); see ``SPLINE_CASES``.
+resampled at its own rate, 4 blocks), with key times and new times given as
+numpy arrays or as Dask arrays persisted on the workers; see ``SPLINE_CASES``.
 """
 
 import numpy as np
@@ -127,22 +128,25 @@ def test_spline_inmemory_2threads(benchmark, stream):
     benchmark.pedantic(qa.spline, args=(t, keys, nt), rounds=3, iterations=1, warmup_rounds=1)
 
 
-SPLINE_CASES = [  # (key blocks, new times, result)
-    (4, "dask", "persisted"),
-    (4, "numpy", "persisted"),
-    (4, "dask", "gathered"),
-    (20, "dask", "persisted"),
+SPLINE_CASES = [  # (key blocks, key times, new times, result)
+    (4, "numpy", "dask", "persisted"),
+    (4, "dask", "dask", "persisted"),
+    (4, "numpy", "numpy", "persisted"),
+    (4, "numpy", "dask", "gathered"),
+    (20, "numpy", "dask", "persisted"),
 ]
 
 
-@pytest.mark.parametrize("blocks,new_times,result", SPLINE_CASES,
-                         ids=[f"{b}blocks-nt_{n}-{r}" for b, n, r in SPLINE_CASES])
-def test_spline_dask(benchmark, stream, client, blocks, new_times, result):
-    """Keys persisted on the workers in `blocks` blocks. New times ``dask``: also
-    persisted on the workers, in as many blocks as the keys; ``numpy``: an in-memory
-    array whose slices travel in the graph. Result ``persisted``: kept in the
-    workers' memory (``persist``), as a cluster keeps what it stores or processes further;
-    ``gathered``: the 32 MB result comes back to this process (``compute``)."""
+@pytest.mark.parametrize("blocks,key_times,new_times,result", SPLINE_CASES,
+                         ids=[f"{b}blocks-t_{t}-nt_{n}-{r}" for b, t, n, r in SPLINE_CASES])
+def test_spline_dask(benchmark, stream, client, blocks, key_times, new_times, result):
+    """Keys persisted on the workers in `blocks` blocks. Key times ``numpy``: an
+    in-memory array (its windows travel in the graph); ``dask``: persisted on the
+    workers like the keys. New times ``dask``: also persisted on the workers, in as
+    many blocks as the keys; ``numpy``: an in-memory array whose slices travel in the
+    graph. Result ``persisted``: kept in the workers' memory (``persist``), as a
+    cluster keeps what it stores or processes further; ``gathered``: the 32 MB result
+    comes back to this process (``compute``)."""
     t, keys, _ = stream
     _spline_group(benchmark, keys)
     if blocks == 20 and len(keys) > 100_000:
@@ -150,14 +154,18 @@ def test_spline_dask(benchmark, stream, client, blocks, new_times, result):
     chunk = -(-len(keys) // blocks)
     keys_d = client.persist(da.from_array(keys, chunks=(chunk, 4)))
     distributed.wait(keys_d)
-    nt = stream[2]
-    times = nt
-    if new_times == "dask":
-        times = client.persist(da.from_array(nt, chunks=-(-N_SAMPLES // blocks)))
+    times = t
+    if key_times == "dask":
+        times = client.persist(da.from_array(t, chunks=chunk))
         distributed.wait(times)
+    nt = stream[2]
+    new = nt
+    if new_times == "dask":
+        new = client.persist(da.from_array(nt, chunks=-(-N_SAMPLES // blocks)))
+        distributed.wait(new)
 
     def run():
-        lazy = qd.spline(t, keys_d, times)  # a fresh graph (and fresh names) every round
+        lazy = qd.spline(times, keys_d, new)  # a fresh graph (and fresh names) every round
         if result == "gathered":
             return client.compute(lazy, sync=True)
         kept = client.persist(lazy)

@@ -58,6 +58,7 @@ try:
     import dask.array as da
     from dask.base import tokenize
     from dask.core import flatten as _flatten_keys
+    from dask.delayed import Delayed
     from dask.highlevelgraph import HighLevelGraph
     from dask.layers import ArrayValuesDep
 except ImportError as exc:  # pragma: no cover - depends on the installation
@@ -1023,24 +1024,209 @@ def _spline_task(times, keys, flip0, new_times, method):
         return qa.spline(times, keys, new_times, method=method)
 
 
-def _output_chunks(nt, t, key_chunks, chunks, given):
-    """Row boundaries of the output blocks."""
+def _output_chunks(nt, cuts, n_key_blocks, chunks):
+    """Row boundaries of the output blocks for new times `nt` (seconds) held here.
+
+    `chunks` rows each if given; else, for sorted new times, one block per key
+    block, split at `cuts` (the key times, in seconds, where key blocks 1, 2, …
+    start; None when the key times are lazy: the new times are then split
+    evenly into as many blocks as there are key blocks).
+    """
     m = nt.shape[0]
-    if given is not None:
-        sizes = list(given)
-    elif chunks is not None:
+    if chunks is not None:
         sizes = [min(int(chunks), m - a) for a in range(0, m, int(chunks))]
-    elif m and np.all(np.diff(nt) >= 0):
-        # one output block per key block: new times split where the key blocks start
-        starts = np.cumsum((0,) + tuple(key_chunks))[1:-1]
-        starts = starts[starts < t.shape[0]]  # not the ends of empty trailing chunks
-        cuts = np.searchsorted(nt, t[starts], side="left")
-        edges = np.unique(np.concatenate(([0], cuts, [m])))
+    elif cuts is not None and m and np.all(np.diff(nt) >= 0):
+        edges = np.unique(np.concatenate(([0], np.searchsorted(nt, cuts, side="left"), [m])))
         sizes = list(np.diff(edges))
     else:
-        per = max(1, -(-m // max(1, len(key_chunks))))
+        per = max(1, -(-m // max(1, n_key_blocks)))
         sizes = [min(per, m - a) for a in range(0, m, per)]
     return [int(s) for s in sizes if s > 0] or [0]
+
+
+def _split(a, sizes):
+    edges = np.cumsum([0] + sizes)
+    return [a[i:j] for i, j in zip(edges[:-1], edges[1:])]
+
+
+def _span(part):
+    """The earliest and latest of some new times (None when there are none)."""
+    return (part.min(), part.max()) if part.size else None
+
+
+def _span_task(block, t_ends, start):
+    """:func:`_span` of a block of new times, or the in-memory ValueError for its first
+    time outside the keys' span `t_ends` (returned, so that the first block's error is
+    the one raised; `start` is the block's first index)."""
+    from .interpolation import _plan_times
+
+    try:
+        _plan_times(t_ends, block, start)
+    except ValueError as exc:
+        return exc
+    return _span(block)
+
+
+def _span_ends(spans, dtype):
+    """The output blocks' earliest and latest new times in one array, and where each
+    block's two are in it (None for an empty block, or one holding an error)."""
+    values, at = [], []
+    for s in spans:
+        if s is None or isinstance(s, Exception):
+            at.append(None)
+            continue
+        at.append(len(values))
+        values += [s[0], s[1]]
+    return np.array(values, dtype), at
+
+
+def _lazy_parts(new_times, chunks):
+    """A Dask array of new times as output blocks: one per block of it (rechunked to
+    `chunks` rows if given), each interpolated where it lives. Returns the array, the
+    blocks' keys, their sizes and their first indices."""
+    _known_chunks(new_times, "new_times")
+    nt_d = new_times if chunks is None else new_times.rechunk(int(chunks))
+    if nt_d.ndim != 1:
+        raise ValueError(f"Expected `new_times` to have shape (N,), got {tuple(nt_d.shape)}.")
+    if nt_d.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_d.dtype}.")
+    starts = np.cumsum((0,) + nt_d.chunks[0])[:-1]
+    return nt_d, [(nt_d.name, j) for j in range(nt_d.numblocks[0])], list(nt_d.chunks[0]), starts
+
+
+def _plan_given_times(t_raw, new_times, chunks, key_chunks):
+    """The spline's plan (see :func:`_plan_lazy_times`) for key times held here: their
+    windows travel in the graph. New times held here need no pass over anything; a
+    Dask array of them takes one small pass for each block's span (which raises the
+    in-memory message for a time outside the keys' span)."""
+    from .interpolation import _plan_times, _seconds
+
+    ends = t_raw[[0, -1]]
+    if isinstance(new_times, da.Array):
+        nt_d, parts, sizes, starts = _lazy_parts(new_times, chunks)
+        spans = dask.compute(*[
+            dask.delayed(_span_task, pure=True)(b, ends, int(a)) for b, a in zip(nt_d.to_delayed().ravel(), starts)
+        ])
+        for f in spans:
+            if isinstance(f, ValueError):
+                raise f
+        deps, nt_dtype = [nt_d], nt_d.dtype
+    else:
+        nt_raw = _materialise(new_times, "new_times")
+        _, nt = _plan_times(ends, nt_raw)
+        starts = np.cumsum((0,) + tuple(key_chunks))[1:-1]
+        cuts = _seconds(t_raw[starts[starts < t_raw.shape[0]]], nt_raw[:0], ends[0])[0]
+        sizes = _output_chunks(nt, cuts, len(key_chunks), chunks)
+        parts = _split(nt_raw, sizes)
+        spans, deps, nt_dtype = [_span(p) for p in parts], [], nt_raw.dtype
+    t = _seconds(t_raw, np.empty(0, nt_dtype), ends[0])[0]
+    values, at = _span_ends(spans, nt_dtype)
+    found = np.searchsorted(t, _seconds(ends, values, ends[0])[1], side="right")
+    segs = [None if m is None else found[m : m + 2] for m in at]
+    return parts, sizes, segs, deps, lambda w0, w1, dsk: t_raw[w0:w1]
+
+
+def _key_time_block(block, start, origin, spans, nt_dtype):
+    """What planning needs of one block of lazy key times (None when it is empty):
+    its first and last times; its first pair that does not increase, as (index in
+    the whole array, time, next time), or None; and, for each end of an output
+    block's span (see :func:`_span_ends`) within the block's times, how many of
+    its times are ≤ that end (in seconds from `origin`, the first key time, when
+    both are integers: see ``interpolation._seconds``)."""
+    from .interpolation import _first_not_increasing, _seconds
+
+    if not block.size:
+        return None
+    i = _first_not_increasing(block)
+    worst = None if i is None else (start + i, block[i], block[i + 1])
+    values, _ = _span_ends(spans, nt_dtype)
+    t, v = _seconds(block, values, origin)
+    inside = np.flatnonzero((v >= t[0]) & (v <= t[-1]))
+    counts = dict(zip(inside.tolist(), np.searchsorted(t, v[inside], side="right").tolist()))
+    return block[0], block[-1], worst, counts
+
+
+def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
+    """The spline's plan for key times in a Dask array, whose blocks stay on the workers.
+
+    One pass of small tasks: each block of new times' span (for a Dask array of
+    them), then per block of key times its order checked and where the spans'
+    ends fall in it. Each window of key times then comes from the workers
+    holding it, not through the graph.
+
+    Returns (parts, sizes, segs, deps, times_window): per output block its new
+    times (an array or a task key), its size, and ``searchsorted(times, span,
+    "right")`` of its span (None when empty); the Dask arrays the graph reads;
+    and a function giving the task expression of key times ``[w0, w1)``.
+    """
+    from .interpolation import _check_times, _not_increasing, _plan_times, _seconds
+
+    _check_times(tt, k, "times")
+    _known_chunks(tt, "times")
+    name = f"spline-plan-{uuid.uuid4().hex}"
+    dsk = {}
+    lazy_nt = isinstance(new_times, da.Array)
+    if lazy_nt:
+        nt_d, parts, sizes, starts = _lazy_parts(new_times, chunks)
+        spans = [(name, "span", j) for j in range(len(parts))]
+        dsk.update({key: (_span, part) for key, part in zip(spans, parts)})
+        deps, nt_dtype = [tt, nt_d], nt_d.dtype
+    else:
+        nt_raw = _materialise(new_times, "new_times")
+        if nt_raw.dtype.kind not in "biuf":
+            raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
+        sizes = _output_chunks(nt_raw, None, len(key_chunks), chunks)
+        parts = _split(nt_raw, sizes)
+        spans, deps, nt_dtype = [_span(p) for p in parts], [tt], nt_raw.dtype
+    # integer times are taken from the first key time: the blocks need it
+    ints = tt.dtype.kind in "biu" and nt_dtype.kind in "biu"
+    origin = (operator.getitem, _window(tt, 0, 1, dsk), 0) if ints else None
+    tstarts = np.cumsum((0,) + tt.chunks[0])
+    blocks = [(name, "block", i) for i in range(tt.numblocks[0])]
+    for i, key in enumerate(blocks):
+        dsk[key] = (_key_time_block, (tt.name, i), int(tstarts[i]), origin, spans, nt_dtype)
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=deps)
+    out = dask.compute(*[Delayed(key, graph, layer=name) for key in blocks + (spans if lazy_nt else [])])
+    infos, spans = out[: len(blocks)], (out[len(blocks) :] if lazy_nt else spans)
+    last = None
+    for i, info in enumerate(infos):  # the first pair out of order, as in memory
+        if info is None:
+            continue
+        if last is not None and not info[0] > last:
+            raise _not_increasing("times", int(tstarts[i]) - 1, last, info[0])
+        if info[2] is not None:
+            raise _not_increasing("times", *info[2])
+        last = info[1]
+    full = [i for i, info in enumerate(infos) if info is not None]
+    ends = np.array([infos[full[0]][0], last], tt.dtype)
+    if not lazy_nt:
+        _plan_times(ends, nt_raw)  # a new time outside the keys' span: the in-memory message
+    elif not all(s is None or _inside(ends, np.array(s, nt_dtype)) for s in spans):
+        _plan_given_times(ends, new_times, chunks, ())  # the in-memory message, from a pass naming the time
+    firsts = _seconds(np.array([infos[i][0] for i in full], tt.dtype), np.empty(0, nt_dtype), ends[0])[0]
+    values, at = _span_ends(spans, nt_dtype)
+    values = _seconds(ends, values, ends[0])[1]
+
+    def found(m):  # searchsorted(times, values[m], "right") from the blocks' counts
+        c = int(np.searchsorted(firsts, values[m], side="right")) - 1
+        if c < 0:
+            return 0
+        i = full[c]
+        return int(tstarts[i]) + infos[i][3].get(m, tt.chunks[0][i])
+
+    segs = [None if m is None else np.array([found(m), found(m + 1)]) for m in at]
+    return parts, sizes, segs, deps, lambda w0, w1, dsk: _window(tt, w0, w1, dsk)
+
+
+def _inside(t_ends, nt_raw):
+    """Whether new times are within the key times' span (nan is not)."""
+    from .interpolation import _plan_times
+
+    try:
+        _plan_times(t_ends, nt_raw)
+    except ValueError:
+        return False
+    return True
 
 
 def spline(times, keys, new_times, method="bezier", chunks=None):
@@ -1055,24 +1241,30 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     sign of its first key. So the result equals the in-memory one (to
     rounding) whatever the chunking, in ``2·blocks + 1`` tasks.
 
-    `times` (1-D, one per key) is read when this function is called, and
-    so is `new_times` when it is a numpy array: its slices travel in the
-    graph. A Dask array of new times (``da.linspace``, ``t0 + da.arange(n)
-    / rate``, or a persisted array) stays on the workers: a first small
-    pass finds each block's earliest and latest time, and its blocks are
-    generated or read where they are interpolated. Either way, new times
-    outside the keys' span raise here, with the in-memory message.
+    Times given as numpy arrays are read when this function is called, and
+    their slices travel in the graph. Times given as Dask arrays
+    (``da.linspace``, ``t0 + da.arange(n) / rate``, a persisted or stored
+    array) stay on the workers, where their blocks are generated or read: a
+    first pass of small tasks finds what the graph needs of them (each block
+    of new times' span; each block of key times checked and searched for
+    those spans). A stream too long for one machine therefore never passes
+    through this process: give its key times as a Dask array too. Either way,
+    key times out of order and new times outside the keys' span raise here,
+    with the in-memory message.
 
     Parameters
     ----------
-    times : array_like, shape (K,)
+    times : array_like or Dask array, shape (K,)
+        Strictly increasing key times; a Dask array may be chunked unlike
+        the keys.
     keys : Dask array or array_like, shape (K, 4)
     new_times : array_like or Dask array, shape (M,)
     method : {"bezier", "slerp", "nlerp", "squad"}
     chunks : int, optional
         Rows per output block. Default: the chunks of `new_times` when it is
-        a Dask array, else one output block per key block (for sorted new
-        times).
+        a Dask array; else, for sorted new times, one output block per key
+        block (split where the key blocks start, or evenly when the key
+        times are a Dask array).
 
     Returns
     -------
@@ -1088,7 +1280,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     >>> np.allclose(lazy.compute(), qa.spline(t, keys, nt), rtol=0, atol=1e-13)
     True
     """
-    from .interpolation import _SPLINE, _plan_times, _times
+    from .interpolation import _SPLINE, _times
 
     if method not in _SPLINE:
         raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
@@ -1098,19 +1290,13 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     k = x.shape[0]
     if k < 2:
         raise ValueError(f"Expected `keys` to hold at least 2 keys, got {k}.")
-    t_raw = _times(_materialise(times, "times"), k)
     dtype = as_float(np.empty(0, x.dtype), "keys").dtype
     x = x.astype(dtype)
-    if isinstance(new_times, da.Array):
-        parts, sizes, spans, t, deps = _lazy_new_times(t_raw, new_times, k, chunks)
+    if isinstance(times, da.Array):
+        plan = _plan_lazy_times(times, k, new_times, chunks, x.chunks[0])
     else:
-        nt_raw = _materialise(new_times, "new_times")
-        t, nt = _plan_times(t_raw, nt_raw)
-        sizes = _output_chunks(nt, t, x.chunks[0], chunks, None)
-        edges = np.cumsum([0] + sizes)
-        parts = [nt_raw[a:b] for a, b in zip(edges[:-1], edges[1:])]
-        spans = [(nt[a:b].min(), nt[a:b].max()) if b > a else None for a, b in zip(edges[:-1], edges[1:])]
-        deps = []
+        plan = _plan_given_times(_times(_materialise(times, "times"), k), new_times, chunks, x.chunks[0])
+    parts, sizes, segs, deps, times_window = plan
     # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
     # building the graph, and two calls then never share results
     token = uuid.uuid4().hex
@@ -1118,15 +1304,15 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     dsk = {}
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
     firsts = []
-    for j, (part, span) in enumerate(zip(parts, spans)):
-        if span is None:
+    for j, (part, seg) in enumerate(zip(parts, segs)):
+        if seg is None:
             dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
             continue
         # the segments of the block's earliest and latest new times bound all of its segments
-        seg = np.clip(np.searchsorted(t, span, side="right") - 1, 0, k - 2)
+        seg = np.clip(seg - 1, 0, k - 2)
         w0, w1 = max(0, int(seg[0]) - 1), min(k, int(seg[1]) + 3)
         flip = (operator.getitem, fname, len(firsts))
-        dsk[(name, j, 0)] = (_spline_task, t_raw[w0:w1], _window(x, w0, w1, dsk), flip, part, method)
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _window(x, w0, w1, dsk), flip, part, method)
         firsts.append(w0)
     rows = [set() for _ in range(x.numblocks[0])]  # the windows' first rows, block by block
     for w0 in firsts:
@@ -1137,45 +1323,6 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
-
-
-def _span_task(block, t_ends, start):
-    """The earliest and latest of a block of new times (None when it is empty), or the
-    in-memory ValueError for its first time outside the keys' span (returned, so that
-    the first block's error is the one raised)."""
-    from .interpolation import _plan_times
-
-    try:
-        _plan_times(t_ends, block, start)
-    except ValueError as exc:
-        return exc
-    return (block.min(), block.max()) if block.size else None
-
-
-def _lazy_new_times(t_raw, new_times, k, chunks):
-    """Output blocks for a Dask array of new times: one per block of it, each
-    interpolating that block where it lives; the blocks' spans come from one
-    small pass (which raises the in-memory message for a time outside the keys')."""
-    from .interpolation import _plan_times
-
-    _known_chunks(new_times, "new_times")
-    nt_d = new_times if chunks is None else new_times.rechunk(int(chunks))
-    if nt_d.ndim != 1:
-        raise ValueError(f"Expected `new_times` to have shape (N,), got {tuple(nt_d.shape)}.")
-    if nt_d.dtype.kind not in "biuf":
-        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_d.dtype}.")
-    starts = np.cumsum((0,) + nt_d.chunks[0])[:-1]
-    t_ends = t_raw[[0, -1]]
-    found = dask.compute(*[
-        dask.delayed(_span_task, pure=True)(b, t_ends, int(a)) for b, a in zip(nt_d.to_delayed().ravel(), starts)
-    ])
-    for f in found:
-        if isinstance(f, ValueError):
-            raise f
-    t = _plan_times(t_raw, np.empty(0, nt_d.dtype))[0]
-    spans = [None if f is None else tuple(_plan_times(t_raw, np.array(f, nt_d.dtype))[1]) for f in found]
-    parts = [(nt_d.name, j) for j in range(nt_d.numblocks[0])]
-    return parts, list(nt_d.chunks[0]), spans, t, [nt_d]
 
 
 def _angular_velocity_task(q, times, frame, lo, hi):
@@ -1285,6 +1432,29 @@ def _lazy_keys(reader, plan, kept, drop):
     return keys, Delayed(report, graph, layer=name)
 
 
+def _kept_times(a, b, bad, in_rate):
+    """The times (row / in_rate) of input rows [a, b) but the `bad` ones."""
+    return np.delete(np.arange(a, b, dtype=np.float64), bad - a) / in_rate
+
+
+def _lazy_key_times(plan, bad, rows, in_rate):
+    """The key times of a stream read by :func:`_lazy_keys` (row k at k / in_rate,
+    dropped rows left out) as a Dask array made by the workers, blocked like the keys,
+    and its first and last times (as the array would hold them)."""
+    name = f"key-times-{tokenize(plan, bad, rows, in_rate)}"
+    dsk = {}
+    for i, (a, b, _) in enumerate(plan):
+        dsk[(name, i)] = (_kept_times, a, b, bad[(bad >= a) & (bad < b)], in_rate)
+    sizes = tuple(_plan_sizes(plan, rows - bad.size))
+    t = da.Array(HighLevelGraph.from_collections(name, dsk, dependencies=[]), name, (sizes,), np.float64)
+    def leading(flags):  # how many of the first flags are true
+        return flags.size if flags.all() else int(np.argmin(flags))
+
+    n = np.arange(bad.size)
+    first, last = leading(bad == n), rows - 1 - leading(bad[::-1] == rows - 1 - n)  # the first and last kept rows
+    return t, np.array([first, last], np.float64) / in_rate
+
+
 def _write_block(target, row0, data):
     return np.array([target.write(row0, data)])
 
@@ -1350,7 +1520,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
             plan, bad = _plan_rows(reader, chunk, drop, opts)
             keys, report = _lazy_keys(reader, plan, reader.rows - bad.size, drop)
             figures = [report]
-            t = np.delete(np.arange(reader.rows, dtype=np.float64), bad) / in_rate
+            t, ends = _lazy_key_times(plan, bad, reader.rows, in_rate)
             dropped = bad.size
         else:
             clean = Cleaner(reader, on_invalid, ordered=True)
@@ -1359,16 +1529,17 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
                 raise DataError(f"{reader.name}: no valid rows")
             whole = concat(whole)
             keys, t = da.from_array(whole.data, chunks=(int(chunk), 4)), whole.t
+            ends = t[[0, -1]]
             clean.report(err)
         if t.shape[0] < 2:
             raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
-        newt.t0 = float(t[0])
+        newt.t0, last = float(ends[0]), float(ends[1])
         if rate is not None:  # t0 + k / rate, made by the workers block by block (as upto() would)
-            n = newt.end(float(t[-1]), True)
+            n = newt.end(last, True)
             nt = newt.t0 + da.arange(0, n, chunks=int(chunk), dtype=np.float64) / newt.rate
         else:
-            nt = newt.upto(float(t[-1]), True)
-            newt.finish(float(t[-1]))
+            nt = newt.upto(last, True)
+            newt.finish(last)
         if nt.size == 0:
             raise DataError(f"{reader.name}: no new times inside the keys' span")
         try:

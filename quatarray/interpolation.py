@@ -1073,18 +1073,32 @@ def unflip(q, axis=0):
 
 def _times(times, k=None, name="times"):
     t = np.asarray(times)
+    _check_times(t, k, name)
+    i = _first_not_increasing(t)
+    if i is not None:
+        raise _not_increasing(name, i, t[i], t[i + 1])
+    return t
+
+
+def _check_times(t, k, name):
+    """The dtype and shape rules for key times (a numpy or a Dask array)."""
     if t.dtype.kind not in "biuf":
         raise TypeError(f"Expected `{name}` to have a real dtype, got {t.dtype}.")
     if t.ndim != 1 or (k is not None and t.shape[0] != k):
-        raise ValueError(f"Expected `{name}` to have shape ({'K' if k is None else k},), got {t.shape}.")
-    bad = ~(np.diff(t) > 0)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {t[i + 1].item()} "
-            f"after {name}[{i}] = {t[i].item()}."
-        )
-    return t
+        raise ValueError(f"Expected `{name}` to have shape ({'K' if k is None else k},), got {tuple(t.shape)}.")
+
+
+def _first_not_increasing(t):
+    """The first i with ``not t[i] < t[i + 1]`` (nan included), or None."""
+    bad = ~(t[1:] > t[:-1])
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def _not_increasing(name, i, before, after):
+    return ValueError(
+        f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {after.item()} "
+        f"after {name}[{i}] = {before.item()}."
+    )
 
 
 @kernel
@@ -1100,20 +1114,27 @@ _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "
 _PIECES = {m: rowloop(rows=1)(specialise(_spline_pieces, f"_{m}", _eval_1=ev.serial)) for m, ev in _SPLINE.items()}
 
 
-def _plan_times(t_raw, nt_raw, index0=0):
-    """Key times and new times as float64 for the segment search — relative to
-    ``t_raw[0]`` when both are integers (exact for ns stamps since the epoch) —
-    or the ValueError naming the first new time outside the keys' span (its
-    flat index counted from `index0`)."""
-    if nt_raw.dtype.kind not in "biuf":
-        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
+def _seconds(t_raw, nt_raw, origin):
+    """Key times and new times as float64 for the segment search: relative to
+    `origin` (the first key time) when both are integers (exact for ns stamps
+    since the epoch), else as they are. Element by element, so a block of key
+    times converts to the same numbers as the whole array."""
     if t_raw.dtype.kind in "biu" and nt_raw.dtype.kind in "biu":
-        origin = t_raw[0]
         t = (t_raw - origin).astype(np.float64)
         nt = (nt_raw.astype(np.int64) - np.int64(origin)).astype(np.float64)
     else:
         t = t_raw.astype(np.float64)
         nt = np.asarray(nt_raw, np.float64)
+    return t, nt
+
+
+def _plan_times(t_raw, nt_raw, index0=0):
+    """:func:`_seconds` of key times and new times, or the ValueError naming the
+    first new time outside the keys' span (its flat index counted from `index0`).
+    Only the first and last key times are looked at here."""
+    if nt_raw.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
+    t, nt = _seconds(t_raw, nt_raw, t_raw[0])
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
     if _n_outside(t[0], t[-1], flat_nt):
         i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))

@@ -450,12 +450,62 @@ def test_spline_lazy_new_times(client):
 
 
 @needs("interpolation")
+@pytest.mark.parametrize("t_chunks", [1, 7, (0, 100, 0, 100), 200])
+def test_spline_lazy_key_times(client, t_chunks):
+    """Key times as a Dask array, chunked unlike the keys: the same results as in memory,
+    the key times of each window read from their blocks (no key time travels in the
+    graph), and the in-memory messages for times out of order and new times outside."""
+    t, keys = keyed(200, seed=9)
+    rng = np.random.default_rng(9)
+    nt = np.sort(np.concatenate([rng.uniform(t[0], t[-1], 900), t]))
+    expect = qa.spline(t, keys, nt)
+    t_d = da.from_array(t, chunks=(t_chunks,) if isinstance(t_chunks, tuple) else t_chunks)
+    for rows in (1, 13, 200):
+        for new_times, chunks in ((nt, None), (nt, 31), (da.from_array(nt, chunks=77), None)):
+            lazy = qd.spline(t_d, chunked(keys, rows), new_times, chunks=chunks)
+            np.testing.assert_allclose(run(client, lazy), expect, rtol=0, atol=1e-13)
+    graph = dict(lazy.__dask_graph__())
+    literals = [a for task in graph.values() if isinstance(task, tuple) for a in task if isinstance(a, np.ndarray)]
+    assert not [a for a in literals if a.size > 1], "key times travelled in the graph"
+    x = chunked(keys, 13)
+    for bad_t in (np.r_[t[:120], t[119], t[121:]], np.r_[t[:99], t[100], t[99], t[101:]], np.r_[t[:50], np.nan, t[51:]]):
+        with pytest.raises(ValueError) as memory:
+            qa.spline(bad_t, keys, nt)
+        with pytest.raises(ValueError) as lazy_error:
+            qd.spline(da.from_array(bad_t, chunks=t_d.chunks), x, nt)
+        assert str(lazy_error.value) == str(memory.value)
+    bad = nt.copy()
+    bad[[250, 610]] = t[-1] + 1, np.nan
+    with pytest.raises(ValueError) as memory:
+        qa.spline(t, keys, bad)
+    for new_times in (bad, da.from_array(bad, chunks=100)):
+        with pytest.raises(ValueError) as lazy_error:
+            qd.spline(t_d, x, new_times)
+        assert str(lazy_error.value) == str(memory.value) and "flat index 250" in str(memory.value)
+
+
+@needs("interpolation")
+def test_spline_lazy_integer_stamps():
+    ti = 1_600_000_000_000_000_000 + np.arange(30, dtype=np.int64) * 10_000_000  # ns since the epoch
+    nti = ti[0] + np.arange(0, 290_000_000, 1_000_000, dtype=np.int64)
+    keys = keyed(30, seed=7)[1]
+    for new_times in (nti, da.from_array(nti, chunks=50)):
+        got = qd.spline(da.from_array(ti, chunks=7), chunked(keys, 4), new_times).compute(scheduler="sync")
+        np.testing.assert_allclose(got, qa.spline(ti, keys, nti), rtol=0, atol=1e-13)
+    with pytest.raises(TypeError, match="real dtype"):
+        qd.spline(da.from_array(ti.astype(str), chunks=7), chunked(keys, 4), nti)
+    with pytest.raises(ValueError, match=r"shape \(30,\)"):
+        qd.spline(da.from_array(ti[:-1], chunks=7), chunked(keys, 4), nti)
+
+
+@needs("interpolation")
 def test_spline_stays_lazy_in_the_keys():
     t = np.arange(100.0)
-    lazy = qd.spline(t, exploding((100, 4), 10), np.linspace(0, 99, 1000))
-    assert isinstance(lazy, da.Array) and lazy.numblocks == (10, 1)
-    with pytest.raises(RuntimeError, match="was computed"):
-        lazy.compute(scheduler="sync")
+    for times in (t, da.from_array(t, chunks=30)):  # lazy key times: a pass over them only
+        lazy = qd.spline(times, exploding((100, 4), 10), np.linspace(0, 99, 1000))
+        assert isinstance(lazy, da.Array) and lazy.numblocks == (10, 1)
+        with pytest.raises(RuntimeError, match="was computed"):
+            lazy.compute(scheduler="sync")
 
 
 def _whole_blocks_and_cut_rows(lazy, x):
@@ -663,6 +713,22 @@ def test_convert_file_bad_row_named_in_a_later_block(client, npy_stream):
 
 
 @needs("interpolation")
+@pytest.mark.parametrize("bad", [[], [0, 1, 5, 9], [3], [0, 8, 9], [9], [1, 2, 3, 4, 5, 6, 7]])
+def test_resample_key_times_made_by_the_workers(bad):
+    """--in-rate key times of an npy or zarr stream (row k at k / rate, dropped rows left
+    out) come from the workers, blocked like the keys: those of the whole array."""
+    from quatarray.dask import _lazy_key_times, _plan_sizes
+
+    rows, bad = 10, np.array(bad, np.int64)
+    cuts = [0, 4, 7, rows]
+    kept = [int(b - a - np.count_nonzero((bad >= a) & (bad < b))) for a, b in zip(cuts[:-1], cuts[1:])]
+    plan = [(a, b, o) for a, b, o in zip(cuts[:-1], cuts[1:], np.cumsum([0] + kept[:-1]).tolist())]
+    t, ends = _lazy_key_times(plan, bad, rows, 100.0)
+    expect = np.delete(np.arange(rows, dtype=np.float64), bad) / 100.0
+    assert t.chunks[0] == tuple(_plan_sizes(plan, rows - bad.size))
+    assert np.array_equal(t.compute(scheduler="sync"), expect) and np.array_equal(ends, expect[[0, -1]])
+
+
 def test_resample_file_drop_zarr_equals_cli(client, npy_stream, capsys):
     from quatarray.cli import main
 
