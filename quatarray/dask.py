@@ -1067,6 +1067,18 @@ def _span_task(block, t_ends, start):
     return _span(block)
 
 
+def _span_pass(nt_d, starts, t_ends):
+    """Each block of a Dask array of new times' span, in one pass, or the in-memory
+    ValueError for its first time outside the keys' span `t_ends`."""
+    spans = dask.compute(*[
+        dask.delayed(_span_task, pure=True)(b, t_ends, int(a)) for b, a in zip(nt_d.to_delayed().ravel(), starts)
+    ])
+    for f in spans:
+        if isinstance(f, ValueError):
+            raise f
+    return spans
+
+
 def _span_ends(spans, dtype):
     """The output blocks' earliest and latest new times in one array, and where each
     block's two are in it (None for an empty block, or one holding an error)."""
@@ -1104,13 +1116,7 @@ def _plan_given_times(t_raw, new_times, chunks, key_chunks):
     ends = t_raw[[0, -1]]
     if isinstance(new_times, da.Array):
         nt_d, parts, sizes, starts = _lazy_parts(new_times, chunks)
-        spans = dask.compute(*[
-            dask.delayed(_span_task, pure=True)(b, ends, int(a)) for b, a in zip(nt_d.to_delayed().ravel(), starts)
-        ])
-        for f in spans:
-            if isinstance(f, ValueError):
-                raise f
-        deps, nt_dtype = [nt_d], nt_d.dtype
+        spans, deps, nt_dtype = _span_pass(nt_d, starts, ends), [nt_d], nt_d.dtype
     else:
         nt_raw = _materialise(new_times, "new_times")
         _, nt = _plan_times(ends, nt_raw)
@@ -1202,7 +1208,7 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
     if not lazy_nt:
         _plan_times(ends, nt_raw)  # a new time outside the keys' span: the in-memory message
     elif not all(s is None or _inside(ends, np.array(s, nt_dtype)) for s in spans):
-        _plan_given_times(ends, new_times, chunks, ())  # the in-memory message, from a pass naming the time
+        _span_pass(nt_d, starts, ends)  # raises the in-memory message, naming the time
     firsts = _seconds(np.array([infos[i][0] for i in full], tt.dtype), np.empty(0, nt_dtype), ends[0])[0]
     values, at = _span_ends(spans, nt_dtype)
     values = _seconds(ends, values, ends[0])[1]
