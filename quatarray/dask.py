@@ -19,7 +19,8 @@ Scans and neighbours (exact whatever the chunking)
     ``cumprod`` (blocked scan: each chunk's running product, then each
     chunk's total carried across the borders), ``unflip`` (flip within
     chunks, then carry the sign across borders), ``angular_velocity`` and
-    ``spline`` (each block sees the neighbouring keys across its borders).
+    ``spline`` (each block sees the neighbouring keys across its borders;
+    the key times and new times may be Dask arrays too, kept on the workers).
 Files
     :func:`convert_file` and :func:`resample_file` stream ``.npy`` (and, with
     ``zarr`` installed, ``.zarr``) files through a scheduler: threads, a local
