@@ -945,12 +945,13 @@ def _concat_rows(parts):
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
-def _window(x, a, b, dsk):
+def _window(x, a, b, dsk, cut=None):
     """A task expression for rows [a, b) of `x` (chunked along axis 0 only), across its blocks.
 
     Rows taken from part of a block are cut by a small task of their own, added
     to `dsk`: it runs where the block is kept, so only those rows travel to the
-    worker that needs them, not the whole block.
+    worker that needs them, not the whole block. Or `cut` gives the expression
+    for them: ``cut(i, (lo, hi))``, rows ``lo:hi`` of block `i`.
     """
     starts = np.cumsum((0,) + x.chunks[0])
     first = int(np.searchsorted(starts, a, side="right")) - 1
@@ -963,9 +964,13 @@ def _window(x, a, b, dsk):
         if a <= lo and hi <= b:
             parts.append(key)
             continue
-        cut = (f"rows-{x.name}", i, int(max(a, lo) - lo), int(min(b, hi) - lo))
-        dsk[cut] = (operator.getitem, key, slice(*cut[2:]))
-        parts.append(cut)
+        rows = int(max(a, lo) - lo), int(min(b, hi) - lo)
+        if cut is not None:
+            parts.append(cut(i, rows))
+            continue
+        task = (f"rows-{x.name}", i) + rows
+        dsk[task] = (operator.getitem, key, slice(*rows))
+        parts.append(task)
     return (_concat_rows, parts)
 
 
@@ -981,12 +986,14 @@ def _materialise(x, name):
     return a
 
 
-def _flip_summary(block, rows):
+def _flip_summary(block, rows, cuts=()):
     """What the sign scan needs of one key block: its first row, its last row after
     the block is unflipped on its own, whether that negated each of `rows` (the
     windows' first rows in this block), and how many leading rows take the sign
     carried into the block (see :func:`_sign_breaks`); keys normalised first, as
-    :func:`quatarray.spline` does. One pass, nothing the size of the block written."""
+    :func:`quatarray.spline` does. One pass, nothing the size of the block written.
+    Also the block's rows ``lo:hi`` for each ``(lo, hi)`` of `cuts` (the rows windows
+    take from part of this block: they travel with the summary)."""
     from .interpolation import _sign_summary
 
     if not len(block):
@@ -996,24 +1003,35 @@ def _flip_summary(block, rows):
     negated = np.zeros(len(rows), np.bool_)
     reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
     full = np.array([[reach == len(block)]])
-    return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist()))
+    return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), {c: block[c[0]:c[1]].copy() for c in cuts}
 
 
-def _window_flips(summaries, starts, firsts):
-    """Whether the global unflip negates row ``firsts[j]`` (one bool per output block).
+# Up to this many key blocks, each spline window finds the sign carried into its first
+# block from the summaries before it (a graph of two layers); beyond, one task carries
+# the signs across all blocks first (the windows' inputs then stay few).
+_FEW_BLOCKS = 16
 
-    One task: the chunk signs carried across the borders (as :func:`unflip`
-    does), then each window's first row looked up in its chunk's local flips.
-    """
-    carries = _carry_all(_unflip_carry, [None if f is None else f[:3] for f in summaries])
-    out = []
-    for w0 in firsts:
-        c = int(np.searchsorted(starts, w0, side="right")) - 1
-        _, _, _, reach, negated = summaries[c]
-        row = w0 - starts[c]
-        carried = carries[c] is not None and bool(np.ravel(carries[c])[0]) and row < reach
-        out.append(carried != negated[row])
-    return out
+
+def _carries(summaries):
+    """The sign carried into every key block (None for the first), from their summaries."""
+    return _carry_all(_unflip_carry, [None if f is None else f[:3] for f in summaries])
+
+
+def _carry_into(summaries):
+    """The sign carried into the last of `summaries`' blocks."""
+    return _carries(summaries)[-1]
+
+
+def _window_flip(carry, summary, row):
+    """Whether the global unflip negates `row` of a key block, from the sign carried
+    into the block and the block's summary."""
+    _, _, _, reach, negated, _ = summary
+    carried = carry is not None and bool(np.ravel(carry)[0]) and row < reach
+    return carried != negated[row]
+
+
+def _cut_rows(summary, cut):
+    return summary[5][cut]
 
 
 def _spline_task(times, keys, flip0, new_times, method):
@@ -1243,10 +1261,12 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     times it holds and the keys its segments need — one key before and two
     after, taken across chunk borders. The keys' sign continuity (the
     in-memory spline unflips the whole stream) is a prefix scan: one small
-    task per key block finds the block's own sign flips, and one task
-    carries the signs across the borders and tells each window the global
-    sign of its first key. So the result equals the in-memory one (to
-    rounding) whatever the chunking, in ``2·blocks + 1`` tasks.
+    task per key block finds the block's own sign flips (and cuts the few
+    rows windows take from the block's edges, which travel with it); each
+    window carries the signs across the borders before it to find the global
+    sign of its first key (with more than 16 key blocks, one task carries
+    them for all). So the result equals the in-memory one (to rounding)
+    whatever the chunking, in ``2·blocks`` tasks (one more beyond 16 blocks).
 
     Times given as numpy arrays are read when this function is called, and
     their slices travel in the graph. Times given as Dask arrays
@@ -1307,10 +1327,19 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
     # building the graph, and two calls then never share results
     token = uuid.uuid4().hex
-    name, sname, fname = (f"spline{p}-{token}" for p in ("", "-summary", "-flips"))
+    name, sname, cname = (f"spline{p}-{token}" for p in ("", "-summary", "-carries"))
     dsk = {}
+    nb = x.numblocks[0]
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
-    firsts = []
+    rows = [set() for _ in range(nb)]  # the windows' first rows, block by block
+    cuts = [set() for _ in range(nb)]  # the rows windows take from part of a block
+
+    def cut(i, lohi):  # such rows travel with the block's summary
+        cuts[i].add(lohi)
+        return (_cut_rows, (sname, i), lohi)
+
+    if nb > _FEW_BLOCKS:
+        dsk[cname] = (_carries, [(sname, i) for i in range(nb)])
     for j, (part, seg) in enumerate(zip(parts, segs)):
         if seg is None:
             dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
@@ -1318,16 +1347,13 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         # the segments of the block's earliest and latest new times bound all of its segments
         seg = np.clip(seg - 1, 0, k - 2)
         w0, w1 = max(0, int(seg[0]) - 1), min(k, int(seg[1]) + 3)
-        flip = (operator.getitem, fname, len(firsts))
-        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _window(x, w0, w1, dsk), flip, part, method)
-        firsts.append(w0)
-    rows = [set() for _ in range(x.numblocks[0])]  # the windows' first rows, block by block
-    for w0 in firsts:
         c = int(np.searchsorted(starts, w0, side="right")) - 1
         rows[c].add(int(w0 - starts[c]))
-    for i in range(x.numblocks[0]):
-        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]))
-    dsk[fname] = (_window_flips, [(sname, i) for i in range(x.numblocks[0])], starts, firsts)
+        carry = (operator.getitem, cname, c) if nb > _FEW_BLOCKS else (_carry_into, [(sname, i) for i in range(c + 1)])
+        flip = (_window_flip, carry, (sname, c), int(w0 - starts[c]))
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _window(x, w0, w1, dsk, cut), flip, part, method)
+    for i in range(nb):
+        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]), sorted(cuts[i]))
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
 

@@ -508,31 +508,40 @@ def test_spline_stays_lazy_in_the_keys():
             lazy.compute(scheduler="sync")
 
 
-def _whole_blocks_and_cut_rows(lazy, x):
-    """Per output block of `lazy`: the blocks of `x` it takes whole, and how many rows it
-    takes from parts of other blocks (cut where those blocks are)."""
-    graph = dict(lazy.__dask_graph__())
+def _whole_blocks_and_small_inputs(lazy, x, small_name):
+    """Per output block of `lazy`: the blocks of `x` it takes whole, and its inputs named
+    like `small_name`, each made from one block of `x` (where that block is kept)."""
     deps = lazy.__dask_graph__().get_all_dependencies()
     out = []
     for key in lazy.__dask_keys__():
         key = key[0]
         whole = sorted(d[1] for d in deps[key] if d[0] == x.name)
-        cut = [d for d in deps[key] if d[0] == f"rows-{x.name}"]
-        assert all(deps[d] == {(x.name, d[1], 0)} for d in cut) and all(graph[d] is not None for d in cut)
-        out.append((whole, sum(d[3] - d[2] for d in cut)))
+        small = [d for d in deps[key] if d[0].startswith(small_name)]
+        assert all(deps[d] == {(x.name, d[1], 0)} for d in small)
+        out.append((whole, small))
     return out
 
 
 @needs("interpolation")
 def test_neighbour_rows_travel_without_their_blocks():
     """A task needing a few rows of a neighbouring block depends on a small task that cuts
-    them (run where the block is), not on the whole block: a worker receives those rows only."""
+    them (run where the block is), not on the whole block: a worker receives those rows only.
+    angular_velocity: a task that cuts them; spline: the block's sign summary, which holds them."""
     t, keys = keyed(100, seed=8)
     x = chunked(keys, 25)
-    lazy = qd.spline(t, x, np.linspace(t[0], t[-1], 1000))
-    assert _whole_blocks_and_cut_rows(lazy, x) == [([0], 2), ([1], 3), ([2], 3), ([3], 1)]
     lazy = qd.angular_velocity(x, t)
-    assert _whole_blocks_and_cut_rows(lazy, x) == [([0], 2), ([1], 4), ([2], 4), ([3], 2)]
+    found = _whole_blocks_and_small_inputs(lazy, x, f"rows-{x.name}")
+    assert [w for w, _ in found] == [[0], [1], [2], [3]]
+    assert [sum(d[3] - d[2] for d in small) for _, small in found] == [2, 4, 4, 2]
+    lazy = qd.spline(t, x, np.linspace(t[0], t[-1], 1000))
+    found = _whole_blocks_and_small_inputs(lazy, x, "spline-summary")
+    assert [w for w, _ in found] == [[0], [1], [2], [3]]
+    # the summaries of the blocks a window cuts rows from, and of those up to its first
+    # row's block (for the sign carried into it)
+    assert [sorted(d[1] for d in small) for _, small in found] == [[0, 1], [0, 2], [0, 1, 3], [0, 1, 2]]
+    graph = lazy.__dask_graph__()
+    summaries = dask.get(graph, sorted({d for _, small in found for d in small}))
+    assert sum(len(r) for s in summaries for r in s[5].values()) == 2 + 3 + 3 + 1
 
 
 @needs("interpolation")
