@@ -20,6 +20,9 @@ file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
 so: here ~25 ms each; and in 20 small blocks) or through 10⁶ keys (a stream
 resampled at its own rate, 4 blocks), with key times and new times given as
 numpy arrays or as Dask arrays persisted on the workers; see ``SPLINE_CASES``.
+For scale, ``test_spline_dask_floor`` runs the same spline as 4 independent
+tasks on windows placed on the workers beforehand (no sign scan, no
+neighbour rows, no graph to build): what Dask itself allows on this machine.
 """
 
 import numpy as np
@@ -175,3 +178,31 @@ def test_spline_dask(benchmark, stream, client, blocks, key_times, new_times, re
     got = benchmark.pedantic(run, rounds=10, warmup_rounds=1)  # short jobs on a shared machine: more rounds
     got = got if result == "gathered" else got.compute()
     np.testing.assert_allclose(got, qa.spline(t, keys, nt), rtol=0, atol=1e-13)
+
+
+def test_spline_dask_floor(benchmark, stream, client):
+    """The floor under ``test_spline_dask``: the in-memory spline of each quarter of the
+    new times, on its window of keys (one before, two after) placed beforehand on the
+    worker that runs it (half of them on each of 2 workers), as 4 independent tasks. Each
+    window keeps its first key's sign (no scan), so a quarter may come out negated."""
+    t, keys, nt = stream
+    _spline_group(benchmark, keys)
+    workers = sorted(client.scheduler_info()["workers"])
+    placed = []
+    for j in range(4):
+        a, b = j * N_SAMPLES // 4, (j + 1) * N_SAMPLES // 4
+        w0 = max(0, int(np.searchsorted(t, nt[a], "right")) - 2)
+        w1 = min(len(t), int(np.searchsorted(t, nt[b - 1], "right")) + 2)
+        where = [workers[j * len(workers) // 4]]
+        placed.append((where, client.scatter([t[w0:w1], keys[w0:w1], nt[a:b]], workers=where)))
+
+    def run():
+        tasks = [client.submit(qd._spline_task, wt, wk, False, wn, "bezier", workers=where, pure=False)
+                 for where, (wt, wk, wn) in placed]
+        distributed.wait(tasks)
+        return tasks
+
+    tasks = benchmark.pedantic(run, rounds=10, warmup_rounds=1)
+    expect = np.array_split(qa.spline(t, keys, nt), 4)
+    for got, want in zip(client.gather(tasks), expect):
+        np.testing.assert_allclose(got if got[0] @ want[0] > 0 else -got, want, rtol=0, atol=1e-13)
