@@ -945,8 +945,9 @@ def _concat_rows(parts):
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
-def _window(x, a, b, dsk, cut=None):
-    """A task expression for rows [a, b) of `x` (chunked along axis 0 only), across its blocks.
+def _pieces(x, a, b, dsk, cut=None):
+    """Task expressions for rows [a, b) of `x` (chunked along axis 0 only), one per
+    block they fall in (whole blocks are the blocks' keys).
 
     Rows taken from part of a block are cut by a small task of their own, added
     to `dsk`: it runs where the block is kept, so only those rows travel to the
@@ -971,7 +972,12 @@ def _window(x, a, b, dsk, cut=None):
         task = (f"rows-{x.name}", i) + rows
         dsk[task] = (operator.getitem, key, slice(*rows))
         parts.append(task)
-    return (_concat_rows, parts)
+    return parts
+
+
+def _window(x, a, b, dsk):
+    """A task expression for rows [a, b) of `x` as one array (see :func:`_pieces`)."""
+    return (_concat_rows, _pieces(x, a, b, dsk))
 
 
 def _materialise(x, name):
@@ -1003,7 +1009,8 @@ def _flip_summary(block, rows, cuts=()):
     negated = np.zeros(len(rows), np.bool_)
     reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
     full = np.array([[reach == len(block)]])
-    return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), {c: block[c[0]:c[1]].copy() for c in cuts}
+    edges = {c: block[c[0] : c[1]].copy() for c in cuts}
+    return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), edges
 
 
 # Up to this many key blocks, each spline window finds the sign carried into its first
@@ -1034,13 +1041,15 @@ def _cut_rows(summary, cut):
     return summary[5][cut]
 
 
-def _spline_task(times, keys, flip0, new_times, method):
-    """The in-memory spline on a window of keys whose first row takes the global sign."""
-    if flip0:
-        keys = np.array(keys)
-        keys[0] = -keys[0]
+def _spline_task(times, pieces, flip0, new_times, method):
+    """The in-memory spline on a window of keys given in pieces (its rows in the
+    blocks it spans), its first row taking the global sign."""
+    from .interpolation import _plan_times, _spline_unit, _times, _unit_keys
+
     with _serial():
-        return qa.spline(times, keys, new_times, method=method)
+        q = _unit_keys(pieces, flip0)
+        t, nt = _plan_times(_times(times, len(q)), np.asarray(new_times))
+        return _spline_unit(t, nt, q, method)
 
 
 def _output_chunks(nt, cuts, n_key_blocks, chunks):
@@ -1351,7 +1360,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         rows[c].add(int(w0 - starts[c]))
         carry = (operator.getitem, cname, c) if nb > _FEW_BLOCKS else (_carry_into, [(sname, i) for i in range(c + 1)])
         flip = (_window_flip, carry, (sname, c), int(w0 - starts[c]))
-        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _window(x, w0, w1, dsk, cut), flip, part, method)
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _pieces(x, w0, w1, dsk, cut), flip, part, method)
     for i in range(nb):
         dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]), sorted(cuts[i]))
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)

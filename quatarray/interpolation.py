@@ -1192,15 +1192,34 @@ def spline(times, keys, new_times, method="bezier"):
     if method not in _SPLINE:
         raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
     q = _keys(keys)
-    k = q.shape[0]
-    t_raw = _times(times, k)
-    nt_raw = np.asarray(new_times)
-    t, nt = _plan_times(t_raw, nt_raw)
-    flat_nt = np.ascontiguousarray(nt.reshape(-1))
+    t, nt = _plan_times(_times(times, q.shape[0]), np.asarray(new_times))
+    return _spline_unit(t, nt, _unit_keys([q]), method)
 
+
+def _unit_keys(parts, flip0=False):
+    """The keys as :func:`spline` interpolates them: the rows of `parts` (float arrays
+    of shape (k, 4), one after the other) normalised into one fresh array, the first
+    row negated if `flip0`, then unflipped in place. One pass per step and one
+    array: `parts` may be the pieces of a window of keys taken across blocks."""
     from .algebra import normalize
 
-    q = unflip(normalize(q))
+    q = np.empty((sum(len(p) for p in parts), 4), parts[0].dtype)
+    a = 0
+    for p in parts:
+        normalize(p, out=q[a : a + len(p)])
+        a += len(p)
+    if flip0:
+        q[0] = -q[0]
+    q3 = q.reshape(len(q), 1, 4)
+    _unflip(q3, q3)  # row by row, each read before it is written
+    return q
+
+
+def _spline_unit(t, nt, q, method):
+    """:func:`spline` on times `t`, new times `nt` (as :func:`_plan_times` gives them)
+    and unit, unflipped keys `q`."""
+    k = q.shape[0]
+    flat_nt = np.ascontiguousarray(nt.reshape(-1))
     c_out = c_in = q  # slerp, nlerp: no controls (the table's columns 4-11 repeat the keys)
     kind = 0
     if method == "bezier":
