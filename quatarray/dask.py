@@ -1007,7 +1007,9 @@ def _flip_summary(block, rows, cuts=()):
     block = np.ascontiguousarray(block)
     ends = np.empty((2, 4), block.dtype)
     negated = np.zeros(len(rows), np.bool_)
-    reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated)
+    tile = min(len(block), 1024)
+    unit, dots = np.empty((tile + 1, 4), block.dtype), np.empty(tile, block.dtype)
+    reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated, unit, dots)
     full = np.array([[reach == len(block)]])
     edges = {c: block[c[0] : c[1]].copy() for c in cuts}
     return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), edges

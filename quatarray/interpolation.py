@@ -359,32 +359,44 @@ def _unflip(q, out):
 
 
 @kernel
-def _sign_summary(q, rows, ends, negated):
+def _sign_summary(q, rows, ends, negated, unit, dots):
     """What a blocked sign scan needs of one block of raw keys, seen as :func:`spline`
     sees them (normalised, then unflipped from the block's first row), without
     writing the block: ``ends`` = its first and last rows, ``negated[j]`` whether
     row ``rows[j]`` (ascending) was negated. Returns how many leading rows a sign
     carried into the block reaches: up to the first row whose dot product with the
-    row before is 0 or nan (that row is kept as it is whatever came before)."""
+    row before is 0 or nan (that row is kept as it is whatever came before).
+
+    A negated row only negates its dot products with its neighbours (exactly), so
+    the rows are normalised into `unit` and their dot products found into `dots`,
+    ``len(dots)`` at a time (loops free of the sign chain, which LLVM vectorises;
+    ``len(unit) == len(dots) + 1``), then the chain runs over their signs."""
     zero = like(ends, 0.0)
-    prev = E.qnormalize(E.load4(q, 0))
-    reach = q.shape[0]
+    n = q.shape[0]
+    E.store4(unit, 0, E.qnormalize(E.load4(q, 0)))
+    E.store4(ends, 0, E.load4(unit, 0))
+    reach = n
+    neg = False  # whether the row before is negated
     j = 0
-    for i in range(q.shape[0]):
-        cur = E.qnormalize(E.load4(q, i))
-        d = E.qdot(cur, prev)
-        neg = i > 0 and d < zero  # as _unflip
-        if i > 0 and reach == q.shape[0] and not (d < zero or d > zero):
-            reach = i
-        if neg:
-            cur = E.qneg(cur)
-        if i == 0:
-            E.store4(ends, 0, cur)
-        while j < rows.shape[0] and rows[j] == i:
-            negated[j] = neg
-            j += 1
-        prev = cur
-    E.store4(ends, 1, prev)
+    while j < rows.shape[0] and rows[j] == 0:
+        negated[j] = False
+        j += 1
+    for base in range(1, n, dots.shape[0]):
+        m = min(dots.shape[0], n - base)
+        for k in range(m):
+            E.store4(unit, k + 1, E.qnormalize(E.load4(q, base + k)))
+        for k in range(m):
+            dots[k] = E.qdot(E.load4(unit, k + 1), E.load4(unit, k))
+        for k in range(m):
+            d = -dots[k] if neg else dots[k]  # as _unflip: the dot product with the row before as it stands
+            if reach == n and not (d < zero or d > zero):
+                reach = base + k
+            neg = d < zero
+            while j < rows.shape[0] and rows[j] == base + k:
+                negated[j] = neg
+                j += 1
+        E.store4(unit, 0, E.load4(unit, m))
+    E.store4(ends, 1, E.qneg(E.load4(unit, 0)) if neg else E.load4(unit, 0))
     return reach
 
 

@@ -366,6 +366,23 @@ def test_spline_where_the_sign_chain_breaks(client, method):
         np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13, err_msg=str(rows))  # nan where memory has nan
 
 
+@needs("interpolation")
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_spline_sign_scan_of_long_blocks(dtype):
+    """Blocks longer than the sign summary's tile of 1024 rows, with flips and chain breaks
+    on and beside its tile borders: the same signs as the in-memory unflip."""
+    q = stream(5000, seed=9, dtype=dtype)
+    q[[1023, 1024, 1025, 2047, 2049, 3000, 4500]] *= -1
+    q[2048] = 0.0
+    q[3071], q[3072] = [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]
+    t = np.arange(5000.0)
+    nt = np.linspace(0, 4999, 3000)
+    expect = qa.spline(t, q, nt)
+    for rows in (1800, 2500, 4000):
+        got = qd.spline(t, chunked(q, rows), nt).compute(scheduler="sync")
+        np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13 if dtype == np.float64 else 1e-6, err_msg=str(rows))
+
+
 # --------------------------------------------------------------------------
 # neighbours across chunk borders: spline and angular_velocity
 
