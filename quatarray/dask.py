@@ -952,7 +952,8 @@ def _pieces(x, a, b, dsk, cut=None):
     Rows taken from part of a block are cut by a small task of their own, added
     to `dsk`: it runs where the block is kept, so only those rows travel to the
     worker that needs them, not the whole block. Or `cut` gives the expression
-    for them: ``cut(i, (lo, hi))``, rows ``lo:hi`` of block `i`.
+    for them: ``cut(i, (lo, hi))``, rows ``lo:hi`` of block `i` (None: a task of
+    their own after all).
     """
     starts = np.cumsum((0,) + x.chunks[0])
     first = int(np.searchsorted(starts, a, side="right")) - 1
@@ -966,8 +967,9 @@ def _pieces(x, a, b, dsk, cut=None):
             parts.append(key)
             continue
         rows = int(max(a, lo) - lo), int(min(b, hi) - lo)
-        if cut is not None:
-            parts.append(cut(i, rows))
+        expr = None if cut is None else cut(i, rows)
+        if expr is not None:
+            parts.append(expr)
             continue
         task = (f"rows-{x.name}", i) + rows
         dsk[task] = (operator.getitem, key, slice(*rows))
@@ -992,14 +994,14 @@ def _materialise(x, name):
     return a
 
 
-def _flip_summary(block, rows, cuts=()):
+def _flip_summary(block, rows):
     """What the sign scan needs of one key block: its first row, its last row after
     the block is unflipped on its own, whether that negated each of `rows` (the
     windows' first rows in this block), and how many leading rows take the sign
     carried into the block (see :func:`_sign_breaks`); keys normalised first, as
     :func:`quatarray.spline` does. One pass, nothing the size of the block written.
-    Also the block's rows ``lo:hi`` for each ``(lo, hi)`` of `cuts` (the rows windows
-    take from part of this block: they travel with the summary)."""
+    Also the block's first and last ``_EDGE_ROWS`` rows as they are: the rows
+    neighbouring windows take from it travel with the summary."""
     from .interpolation import _sign_summary
 
     if not len(block):
@@ -1011,7 +1013,7 @@ def _flip_summary(block, rows, cuts=()):
     unit, dots = np.empty((tile + 1, 4), block.dtype), np.empty(tile, block.dtype)
     reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated, unit, dots)
     full = np.array([[reach == len(block)]])
-    edges = {c: block[c[0] : c[1]].copy() for c in cuts}
+    edges = block[:_EDGE_ROWS].copy(), block[-_EDGE_ROWS:].copy()
     return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), edges
 
 
@@ -1019,6 +1021,11 @@ def _flip_summary(block, rows, cuts=()):
 # block from the summaries before it (a graph of two layers); beyond, one task carries
 # the signs across all blocks first (the windows' inputs then stay few).
 _FEW_BLOCKS = 16
+# The rows at each end of a key block that travel with its sign summary (which every
+# window after it fetches, for the sign carried): neighbouring windows take theirs
+# from there. Other rows taken from part of a block (output blocks that do not start
+# where key blocks do) are cut by a task of their own.
+_EDGE_ROWS = 64
 
 
 def _carries(summaries):
@@ -1039,8 +1046,9 @@ def _window_flip(carry, summary, row):
     return carried != negated[row]
 
 
-def _cut_rows(summary, cut):
-    return summary[5][cut]
+def _edge_rows(summary, end, lo, hi):
+    """Rows ``lo:hi`` of a key block's first (`end` 0) or last (1) edge rows."""
+    return summary[5][end][lo:hi]
 
 
 def _spline_task(times, pieces, flip0, new_times, method):
@@ -1272,8 +1280,8 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     times it holds and the keys its segments need — one key before and two
     after, taken across chunk borders. The keys' sign continuity (the
     in-memory spline unflips the whole stream) is a prefix scan: one small
-    task per key block finds the block's own sign flips (and cuts the few
-    rows windows take from the block's edges, which travel with it); each
+    task per key block finds the block's own sign flips (and keeps the rows
+    at its two ends, which neighbouring windows take from it); each
     window carries the signs across the borders before it to find the global
     sign of its first key (with more than 16 key blocks, one task carries
     them for all). So the result equals the in-memory one (to rounding)
@@ -1343,11 +1351,15 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     nb = x.numblocks[0]
     starts = np.cumsum((0,) + x.chunks[0])[:-1]
     rows = [set() for _ in range(nb)]  # the windows' first rows, block by block
-    cuts = [set() for _ in range(nb)]  # the rows windows take from part of a block
 
-    def cut(i, lohi):  # such rows travel with the block's summary
-        cuts[i].add(lohi)
-        return (_cut_rows, (sname, i), lohi)
+    def edge(i, lohi):  # rows at either end of block i come with its summary
+        lo, hi = lohi
+        tail = max(0, x.chunks[0][i] - _EDGE_ROWS)  # where the last edge rows start
+        if hi <= _EDGE_ROWS:
+            return (_edge_rows, (sname, i), 0, lo, hi)
+        if lo >= tail:
+            return (_edge_rows, (sname, i), 1, lo - tail, hi - tail)
+        return None
 
     if nb > _FEW_BLOCKS:
         dsk[cname] = (_carries, [(sname, i) for i in range(nb)])
@@ -1362,9 +1374,9 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         rows[c].add(int(w0 - starts[c]))
         carry = (operator.getitem, cname, c) if nb > _FEW_BLOCKS else (_carry_into, [(sname, i) for i in range(c + 1)])
         flip = (_window_flip, carry, (sname, c), int(w0 - starts[c]))
-        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _pieces(x, w0, w1, dsk, cut), flip, part, method)
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _pieces(x, w0, w1, dsk, edge), flip, part, method)
     for i in range(nb):
-        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]), sorted(cuts[i]))
+        dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]))
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
     return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
 

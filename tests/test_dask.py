@@ -556,9 +556,20 @@ def test_neighbour_rows_travel_without_their_blocks():
     # the summaries of the blocks a window cuts rows from, and of those up to its first
     # row's block (for the sign carried into it)
     assert [sorted(d[1] for d in small) for _, small in found] == [[0, 1], [0, 2], [0, 1, 3], [0, 1, 2]]
-    graph = lazy.__dask_graph__()
-    summaries = dask.get(graph, sorted({d for _, small in found for d in small}))
-    assert sum(len(r) for s in summaries for r in s[5].values()) == 2 + 3 + 3 + 1
+    # a summary carries at most _EDGE_ROWS rows from each end of its block, whatever its size
+    t, keys = keyed(1000, seed=9)
+    x = chunked(keys, 250)
+    nt = np.linspace(t[0], t[-1], 3000)
+    lazy = qd.spline(t, x, nt)  # output blocks start where key blocks do
+    assert not any(small for _, small in _whole_blocks_and_small_inputs(lazy, x, f"rows-{x.name}"))
+    found = _whole_blocks_and_small_inputs(lazy, x, "spline-summary")
+    summaries = dask.get(lazy.__dask_graph__(), sorted({d for _, small in found for d in small}))
+    assert [len(e) for s in summaries for e in s[5]] == [qd._EDGE_ROWS] * 2 * len(summaries)
+    # output blocks starting inside key blocks: rows from a block's middle are cut by a task
+    lazy = qd.spline(t, x, nt, chunks=700)
+    found = _whole_blocks_and_small_inputs(lazy, x, f"rows-{x.name}")
+    assert any(small for _, small in found)
+    assert np.abs(lazy.compute(scheduler="sync") - qa.spline(t, keys, nt)).max() <= 1e-13
 
 
 @needs("interpolation")
