@@ -197,7 +197,7 @@ def test_spline_dask_floor(benchmark, stream, client):
         placed.append((where, client.scatter([t[w0:w1], keys[w0:w1], nt[a:b]], workers=where)))
 
     def run():
-        tasks = [client.submit(qd._spline_task, wt, [wk], False, wn, "bezier", workers=where, pure=False)
+        tasks = [client.submit(qd._spline_task, wt, [wk], False, wn, "bezier", None, workers=where, pure=False)
                  for where, (wt, wk, wn) in placed]
         distributed.wait(tasks)
         return tasks

@@ -997,8 +997,9 @@ def _materialise(x, name):
 def _flip_summary(block, rows):
     """What the sign scan needs of one key block: its first row, its last row after
     the block is unflipped on its own, whether that negated each of `rows` (the
-    windows' first rows in this block), and how many leading rows take the sign
-    carried into the block (see :func:`_sign_breaks`); keys normalised first, as
+    windows' first rows in this block), how many leading rows take the sign carried
+    into the block (see :func:`_sign_breaks`) and whether that is all of them
+    (``full``); keys normalised first, as
     :func:`quatarray.spline` does. One pass, nothing the size of the block written.
     Also the block's first and last ``_EDGE_ROWS`` rows as they are: the rows
     neighbouring windows take from it travel with the summary."""
@@ -1021,15 +1022,19 @@ def _flip_summary(block, rows):
 # block from the summaries before it (a graph of two layers); beyond, one task carries
 # the signs across all blocks first (the windows' inputs then stay few).
 _FEW_BLOCKS = 16
-# The rows at each end of a key block that travel with its sign summary (which every
-# window after it fetches, for the sign carried): neighbouring windows take theirs
-# from there. Other rows taken from part of a block (output blocks that do not start
-# where key blocks do) are cut by a task of their own.
-_EDGE_ROWS = 64
+# The rows at each end of a key block that travel with its sign summary (which the
+# windows after it fetch for the sign carried, or the carries task beyond
+# _FEW_BLOCKS): neighbouring windows take theirs from there (a window reaches one
+# key before its first sample's segment and two after its last: with output blocks
+# split where key blocks start, a few rows). Other rows taken from part of a block
+# (output blocks that do not start near where key blocks do) are cut by a task of
+# their own.
+_EDGE_ROWS = 8
 
 
 def _carries(summaries):
-    """The sign carried into every key block (None for the first), from their summaries."""
+    """The sign carried into every key block (None for the first and for empty blocks),
+    from their summaries."""
     return _carry_all(_unflip_carry, [None if f is None else f[:3] for f in summaries])
 
 
@@ -1051,14 +1056,15 @@ def _edge_rows(summary, end, lo, hi):
     return summary[5][end][lo:hi]
 
 
-def _spline_task(times, pieces, flip0, new_times, method):
+def _spline_task(times, pieces, flip0, new_times, method, origin):
     """The in-memory spline on a window of keys given in pieces (its rows in the
-    blocks it spans), its first row taking the global sign."""
+    blocks it spans), its first row taking the global sign; integer times are taken
+    from `origin`, the whole stream's first key time, as in memory."""
     from .interpolation import _plan_times, _spline_unit, _times, _unit_keys
 
     with _serial():
         q = _unit_keys(pieces, flip0)
-        t, nt = _plan_times(_times(times, len(q)), np.asarray(new_times))
+        t, nt = _plan_times(_times(times, len(q)), np.asarray(new_times), origin=origin)
         return _spline_unit(t, nt, q, method)
 
 
@@ -1167,7 +1173,7 @@ def _plan_given_times(t_raw, new_times, chunks, key_chunks):
     values, at = _span_ends(spans, nt_dtype)
     found = np.searchsorted(t, _seconds(ends, values, ends[0])[1], side="right")
     segs = [None if m is None else found[m : m + 2] for m in at]
-    return parts, sizes, segs, deps, lambda w0, w1, dsk: t_raw[w0:w1]
+    return parts, sizes, segs, deps, lambda w0, w1, dsk: t_raw[w0:w1], ends[0]
 
 
 def _key_time_block(block, start, origin, spans, nt_dtype):
@@ -1198,10 +1204,11 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
     ends fall in it. Each window of key times then comes from the workers
     holding it, not through the graph.
 
-    Returns (parts, sizes, segs, deps, times_window): per output block its new
-    times (an array or a task key), its size, and ``searchsorted(times, span,
-    "right")`` of its span (None when empty); the Dask arrays the graph reads;
-    and a function giving the task expression of key times ``[w0, w1)``.
+    Returns (parts, sizes, segs, deps, times_window, origin): per output block
+    its new times (an array or a task key), its size, and ``searchsorted(times,
+    span, "right")`` of its span (None when empty); the Dask arrays the graph
+    reads; a function giving the task expression of key times ``[w0, w1)``; and
+    the first key time (integer times are counted from it).
     """
     from .interpolation import _check_times, _not_increasing, _plan_times, _seconds
 
@@ -1217,8 +1224,6 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
         deps, nt_dtype = [tt, nt_d], nt_d.dtype
     else:
         nt_raw = _materialise(new_times, "new_times")
-        if nt_raw.dtype.kind not in "biuf":
-            raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
         sizes = _output_chunks(nt_raw, None, len(key_chunks), chunks)
         parts = _split(nt_raw, sizes)
         spans, deps, nt_dtype = [_span(p) for p in parts], [tt], nt_raw.dtype
@@ -1259,7 +1264,7 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
         return int(tstarts[i]) + infos[i][3].get(m, tt.chunks[0][i])
 
     segs = [None if m is None else np.array([found(m), found(m + 1)]) for m in at]
-    return parts, sizes, segs, deps, lambda w0, w1, dsk: _window(tt, w0, w1, dsk)
+    return parts, sizes, segs, deps, lambda w0, w1, dsk: _window(tt, w0, w1, dsk), ends[0]
 
 
 def _inside(t_ends, nt_raw):
@@ -1285,7 +1290,10 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     window carries the signs across the borders before it to find the global
     sign of its first key (with more than 16 key blocks, one task carries
     them for all). So the result equals the in-memory one (to rounding)
-    whatever the chunking, in ``2·blocks`` tasks (one more beyond 16 blocks).
+    whatever the chunking, in ``2·blocks`` tasks (one more beyond 16 blocks;
+    plus a small task per window that starts away from a key block's ends, or
+    per window of key times given as a Dask array, to cut its rows where they
+    are kept).
 
     Times given as numpy arrays are read when this function is called, and
     their slices travel in the graph. Times given as Dask arrays
@@ -1338,11 +1346,13 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         raise ValueError(f"Expected `keys` to hold at least 2 keys, got {k}.")
     dtype = as_float(np.empty(0, x.dtype), "keys").dtype
     x = x.astype(dtype)
+    if chunks is not None and (isinstance(chunks, bool) or not isinstance(chunks, (int, np.integer)) or chunks < 1):
+        raise ValueError(f"Expected `chunks` to be a positive integer (rows per output block), got {chunks!r}.")
     if isinstance(times, da.Array):
         plan = _plan_lazy_times(times, k, new_times, chunks, x.chunks[0])
     else:
-        plan = _plan_given_times(_times(_materialise(times, "times"), k), new_times, chunks, x.chunks[0])
-    parts, sizes, segs, deps, times_window = plan
+        plan = _plan_given_times(_times(times, k), new_times, chunks, x.chunks[0])
+    parts, sizes, segs, deps, times_window, origin = plan
     # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
     # building the graph, and two calls then never share results
     token = uuid.uuid4().hex
@@ -1374,7 +1384,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         rows[c].add(int(w0 - starts[c]))
         carry = (operator.getitem, cname, c) if nb > _FEW_BLOCKS else (_carry_into, [(sname, i) for i in range(c + 1)])
         flip = (_window_flip, carry, (sname, c), int(w0 - starts[c]))
-        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _pieces(x, w0, w1, dsk, edge), flip, part, method)
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), _pieces(x, w0, w1, dsk, edge), flip, part, method, origin)
     for i in range(nb):
         dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]))
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)

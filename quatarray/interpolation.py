@@ -1140,13 +1140,14 @@ def _seconds(t_raw, nt_raw, origin):
     return t, nt
 
 
-def _plan_times(t_raw, nt_raw, index0=0):
-    """:func:`_seconds` of key times and new times, or the ValueError naming the
-    first new time outside the keys' span (its flat index counted from `index0`).
-    Only the first and last key times are looked at here."""
+def _plan_times(t_raw, nt_raw, index0=0, origin=None):
+    """:func:`_seconds` of key times and new times (integers taken from `origin`,
+    default the first key time), or the ValueError naming the first new time
+    outside the keys' span (its flat index counted from `index0`). Only the first
+    and last key times are looked at here."""
     if nt_raw.dtype.kind not in "biuf":
         raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
-    t, nt = _seconds(t_raw, nt_raw, t_raw[0])
+    t, nt = _seconds(t_raw, nt_raw, t_raw[0] if origin is None else origin)
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
     if _n_outside(t[0], t[-1], flat_nt):
         i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))

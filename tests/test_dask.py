@@ -439,6 +439,33 @@ def test_spline_integer_stamps_and_errors():
 
 
 @needs("interpolation")
+@pytest.mark.parametrize("lazy_times", [False, True])
+def test_spline_integer_stamps_far_from_the_first(lazy_times):
+    """Integer times more than 2**53 units after the first key: every window counts them
+    from the stream's first key time, as in memory (from its own first key they round
+    differently to float64)."""
+    t = np.r_[0, 2**54 + 1001 * np.arange(12)].astype(np.int64)
+    keys = keyed(13, seed=3)[1]
+    nt = t[5] + np.array([1, 500, 1700])
+    times = da.from_array(t, chunks=5) if lazy_times else t
+    for method in ("slerp", "bezier"):
+        got = qd.spline(times, chunked(keys, 4), nt, method).compute(scheduler="sync")
+        np.testing.assert_allclose(got, qa.spline(t, keys, nt, method), rtol=0, atol=1e-13)
+
+
+@needs("interpolation")
+def test_spline_argument_errors():
+    t, keys = keyed(20, seed=4)
+    x, nt = chunked(keys, 6), np.linspace(t[0], t[-1], 50)
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match=r"Expected `chunks` to be a positive integer"):
+            qd.spline(t, x, nt, chunks=bad)
+    assert qd.spline(t, x, nt, chunks=np.int64(7)).chunks[0][0] == 7
+    with pytest.raises(ValueError, match=r"Expected `times` to have shape \(20,\)"):
+        qd.spline(t[:, None], x, nt)
+
+
+@needs("interpolation")
 def test_spline_lazy_new_times(client):
     """New times as a Dask array stay on the workers: one output block per block of them,
     equal to in memory; the first block with a time outside the keys' span is named."""
