@@ -14,7 +14,8 @@ scaling = time(1 worker) / time(2 workers) (goal ≥ 1.6 on 2 cores);
 overhead = time(1 worker) / time(in memory, 1 thread).
 
 Workloads: ``convert`` of a 10⁷-row ``.npy`` file to Euler angles (file to
-file, as ``quatarray convert --scheduler``), and a 10⁶-sample Bézier
+file, as ``quatarray convert --scheduler``, in blocks of 5·10⁵ or 2.5·10⁶
+rows), and a 10⁶-sample Bézier
 ``spline`` (chunked keys in, the lazy result computed on the workers) through
 10⁵ unevenly timed keys (in 4 blocks, Dask's advice being tasks of 100 ms or
 so: here ~25 ms each; and in 20 small blocks) or through 10⁶ keys (a stream
@@ -38,7 +39,7 @@ import quatarray.dask as qd  # noqa: E402
 from quatarray import _jit  # noqa: E402
 
 N_CONVERT = 10_000_000
-CHUNK_CONVERT = 500_000
+CHUNK_CONVERT = [500_000, 2_500_000]  # rows per block: 20 tasks of ~6 ms, or 4 of ~30 ms
 N_SAMPLES = 1_000_000
 
 
@@ -80,38 +81,41 @@ def one_thread(monkeypatch):
     monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 1 << 62)
 
 
-def _cli_convert(src, dst):
+@pytest.fixture(params=CHUNK_CONVERT, ids=["blocks5e5", "blocks2.5e6"])
+def chunk(request, benchmark):
+    benchmark.group = f"dask-convert-1e7-rows-to-euler-blocks-of-{request.param:.1e}"
+    return request.param
+
+
+def _cli_convert(src, dst, chunk):
     from quatarray.cli import main
 
-    assert main(["convert", str(src), str(dst), "--to", "euler:ZYX", "--chunk", str(CHUNK_CONVERT),
+    assert main(["convert", str(src), str(dst), "--to", "euler:ZYX", "--chunk", str(chunk),
                  "--force", "--no-progress"]) == 0
 
 
-def _fresh(npy):
+def _fresh(npy, chunk):
     """Setup of every round: no old OUT (unlinking 240 MB of it would be timed with the rename)."""
     if npy[1].exists():
         npy[1].unlink()
-    return npy, {}
+    return (*npy, chunk), {}
 
 
-@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
-def test_convert_inmemory_1thread(benchmark, npy, one_thread):
-    benchmark.pedantic(_cli_convert, setup=lambda: _fresh(npy), rounds=5, warmup_rounds=1)
+def test_convert_inmemory_1thread(benchmark, npy, chunk, one_thread):
+    benchmark.pedantic(_cli_convert, setup=lambda: _fresh(npy, chunk), rounds=5, warmup_rounds=1)
 
 
-@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
-def test_convert_inmemory_2threads(benchmark, npy):
-    benchmark.pedantic(_cli_convert, setup=lambda: _fresh(npy), rounds=5, warmup_rounds=1)
+def test_convert_inmemory_2threads(benchmark, npy, chunk):
+    benchmark.pedantic(_cli_convert, setup=lambda: _fresh(npy, chunk), rounds=5, warmup_rounds=1)
 
 
-@pytest.mark.benchmark(group="dask-convert-1e7-rows-to-euler")
-def test_convert_dask(benchmark, npy, client):
+def test_convert_dask(benchmark, npy, chunk, client):
     src, dst = npy
 
-    def run(src, dst):
-        qd.convert_file(src, dst, "euler:ZYX", chunk=CHUNK_CONVERT, scheduler=client, force=True)
+    def run(src, dst, chunk):
+        qd.convert_file(src, dst, "euler:ZYX", chunk=chunk, scheduler=client, force=True)
 
-    benchmark.pedantic(run, setup=lambda: _fresh(npy), rounds=5, warmup_rounds=1)
+    benchmark.pedantic(run, setup=lambda: _fresh(npy, chunk), rounds=5, warmup_rounds=1)
     np.testing.assert_array_equal(np.load(dst, mmap_mode="r")[:1000], qa.as_euler(np.load(src)[:1000], "ZYX"))
 
 
@@ -206,3 +210,4 @@ def test_spline_dask_floor(benchmark, stream, client):
     expect = np.array_split(qa.spline(t, keys, nt), 4)
     for got, want in zip(client.gather(tasks), expect):
         np.testing.assert_allclose(got if got[0] @ want[0] > 0 else -got, want, rtol=0, atol=1e-13)
+
