@@ -661,8 +661,11 @@ class _NpyTarget:
     """A temporary ``.npy`` beside `dst` with its header written; renamed over `dst` on success.
 
     Tasks write their rows with :meth:`write` (a positioned write: no page
-    faults on the fresh file, unlike a memory map), in any order.
+    faults on the fresh file, unlike a memory map), in any order and in
+    pieces of any size (`piecewise`).
     """
+
+    piecewise = True
 
     def __init__(self, dst, shape, dtype, chunk):
         import tempfile
@@ -746,6 +749,8 @@ class _ZarrTarget(_NpyTarget):
             zarr.create_array(store=self.tmp, shape=shape, dtype=dtype, overwrite=True,
                               chunks=(max(1, min(int(chunk), shape[0])),) + shape[1:])
         self.dtype = np.dtype(dtype)
+
+    piecewise = False  # a piece smaller than a zarr chunk rewrites the whole chunk
 
     def write(self, row0, data):
         import zarr
@@ -859,22 +864,30 @@ def _convert_task(reader, a, b, row0, rows, to, degrees, target, drop):
     good) from output row `row0` on.
 
     The rows go through in pieces of the command line's size, so each piece
-    is checked and converted while it is in cache, into a reused buffer
-    written with one call. Returns the report figures.
+    is checked and converted while it is in cache, into a reused buffer; an
+    npy target takes each piece from there while it is still in cache (with
+    both workers converting, the block-sized buffer's extra trip through
+    memory slowed both), a zarr target the whole block in one call. Returns
+    the report figures.
     """
     from .cli import _PIECE, _target
     from .io.clean import Cleaner
 
     _, core, fn = _target(to, degrees)
-    out = _scratch_rows(rows, core, target.dtype)
+    piecewise = target.piecewise
+    out = _scratch_rows(min(rows, _PIECE) if piecewise else rows, core, target.dtype)
     clean = Cleaner(reader, "drop" if drop else "error")
     n = 0
     with _serial():
         for p in range(a, b, _PIECE):
             ch = _read_clean(reader, p, min(p + _PIECE, b), drop, clean)
-            fn(ch.data.astype(target.dtype, copy=False), out=out[n : n + len(ch)])
+            piece = out[: len(ch)] if piecewise else out[n : n + len(ch)]
+            fn(ch.data.astype(target.dtype, copy=False), out=piece)
+            if piecewise:
+                target.write(row0 + n, piece)
             n += len(ch)
-    target.write(row0, out[:n])
+    if not piecewise:
+        target.write(row0, out[:n])
     return clean.normalised, clean.max_dev, getattr(fn, "locked", 0)
 
 

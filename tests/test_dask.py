@@ -740,6 +740,27 @@ def test_convert_file_drop_equals_cli(client, npy_stream, out, capsys):
     assert not [p for p in npy_stream.iterdir() if p.name.startswith(".holes-d")]
 
 
+@pytest.mark.parametrize("on_invalid", ["error", "drop"])
+def test_convert_file_blocks_of_many_pieces(client, tmp_path, on_invalid, capsys):
+    """Blocks longer than the command line's pieces: an npy target takes them piece by
+    piece (the last one short; with drop, pieces shortened by their bad rows, one
+    piece all bad), each at its place in the file."""
+    from quatarray.cli import _PIECE, main
+
+    n = 3 * _PIECE + 123
+    q = stream(n, seed=13)
+    if on_invalid == "drop":
+        q[[5, _PIECE - 1, _PIECE, 2 * _PIECE + 7]] = np.nan
+        q[_PIECE : 2 * _PIECE + 10] = 0  # the first block's second and third pieces all bad
+    np.save(tmp_path / "long.npy", q)
+    src, ref, dst = tmp_path / "long.npy", tmp_path / "ref.npy", tmp_path / "out.npy"
+    assert main(["convert", str(src), str(ref), "--to", "euler:ZYX", "--on-invalid", on_invalid]) == 0
+    capsys.readouterr()
+    chunk = 2 * _PIECE + 5
+    assert qd.convert_file(src, dst, "euler:ZYX", chunk=chunk, scheduler=client, on_invalid=on_invalid) == 0
+    assert same(np.load(dst), np.load(ref))
+
+
 def test_convert_file_zarr_in_and_out(client, npy_stream):
     q = np.load(npy_stream / "q.npy")
     src = _zarr_store(npy_stream / "q.zarr", q[:, [1, 2, 3, 0]], rows=333)  # stored x, y, z, w
