@@ -735,6 +735,8 @@ class _ZarrTarget(_NpyTarget):
     `chunk`), so no two tasks touch the same chunk.
     """
 
+    piecewise = False  # a piece smaller than a zarr chunk rewrites the whole chunk
+
     def __init__(self, dst, shape, dtype, chunk):
         import tempfile
 
@@ -749,8 +751,6 @@ class _ZarrTarget(_NpyTarget):
             zarr.create_array(store=self.tmp, shape=shape, dtype=dtype, overwrite=True,
                               chunks=(max(1, min(int(chunk), shape[0])),) + shape[1:])
         self.dtype = np.dtype(dtype)
-
-    piecewise = False  # a piece smaller than a zarr chunk rewrites the whole chunk
 
     def write(self, row0, data):
         import zarr
