@@ -210,4 +210,3 @@ def test_spline_dask_floor(benchmark, stream, client):
     expect = np.array_split(qa.spline(t, keys, nt), 4)
     for got, want in zip(client.gather(tasks), expect):
         np.testing.assert_allclose(got if got[0] @ want[0] > 0 else -got, want, rtol=0, atol=1e-13)
-

@@ -583,7 +583,7 @@ def test_neighbour_rows_travel_without_their_blocks():
     # the summaries of the blocks a window cuts rows from, and of those up to its first
     # row's block (for the sign carried into it)
     assert [sorted(d[1] for d in small) for _, small in found] == [[0, 1], [0, 2], [0, 1, 3], [0, 1, 2]]
-    # a summary carries at most _EDGE_ROWS rows from each end of its block, whatever its size
+    # a summary carries _EDGE_ROWS rows from each end of its block, whatever the block's size
     t, keys = keyed(1000, seed=9)
     x = chunked(keys, 250)
     nt = np.linspace(t[0], t[-1], 3000)
@@ -750,7 +750,7 @@ def test_convert_file_blocks_of_many_pieces(client, tmp_path, on_invalid, capsys
     n = 3 * _PIECE + 123
     q = stream(n, seed=13)
     if on_invalid == "drop":
-        q[[5, _PIECE - 1, _PIECE, 2 * _PIECE + 7]] = np.nan
+        q[[5, _PIECE - 1, 2 * _PIECE + 11, 3 * _PIECE + 7]] = np.nan  # on piece and block borders too
         q[_PIECE : 2 * _PIECE + 10] = 0  # the first block's second and third pieces all bad
     np.save(tmp_path / "long.npy", q)
     src, ref, dst = tmp_path / "long.npy", tmp_path / "ref.npy", tmp_path / "out.npy"
