@@ -486,3 +486,156 @@ def test_kitti_not_a_rotation(tmp_path):
         read_all(io.open_stream(p, name="k.txt"))
     got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
     assert len(got) == 1 and clean.dropped == 1
+
+
+# --------------------------------------------------------------------------
+# hardening (issue 14): inputs other tools read
+
+
+TUM_ROWS = [
+    [1305031098.6659, 1.0, 2.0, 3.0, 0.0, 0.0, 0.7071067811865476, 0.7071067811865476],
+    [1305031098.6759, 1.5, -2.5, 3.5, 0.0, 0.0, 0.0, 1.0],
+    [1305031098.6859, 1.5, 2.5, 3.5, 0.5, 0.5, 0.5, 0.5],
+]
+
+
+def tum_text(rows, sep=" ", lead="", trail=""):
+    return "".join(lead + sep.join(repr(v) for v in r) + trail + "\n" for r in rows)
+
+
+def tum_want(rows):
+    a = np.array(rows)
+    return a[:, 0], a[:, 1:4], a[:, [7, 4, 5, 6]]
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        tum_text(TUM_ROWS, lead="  "),
+        tum_text(TUM_ROWS, sep="   "),
+        tum_text(TUM_ROWS, trail="  "),
+        tum_text(TUM_ROWS, trail="\t"),
+        tum_text(TUM_ROWS, sep=" \t "),
+        tum_text(TUM_ROWS, trail=" \r").replace("\n", "\n"),
+        "# aligned\n" + "".join(" ".join(f"{v!r:>20}" for v in r) + "\n" for r in TUM_ROWS),
+        "  # indented comment\n\n" + tum_text(TUM_ROWS[:1]) + "   \n" + tum_text(TUM_ROWS[1:], lead="\t"),
+    ],
+    ids=["leading", "runs", "trailing", "trailing-tab", "mixed", "crlf-space", "aligned", "comments-blanks"],
+)
+def test_tum_any_whitespace_separates(tmp_path, text):
+    p = write(tmp_path / "traj.txt", text)
+    np.testing.assert_array_equal(np.loadtxt(p), TUM_ROWS)  # what numpy reads, we read
+    r = io.open_stream(p)
+    assert r.format == "tum"
+    got, _ = read_all(r)
+    t, pos, q = tum_want(TUM_ROWS)
+    np.testing.assert_array_equal(got.t, t)
+    np.testing.assert_array_equal(got.pos, pos)
+    np.testing.assert_allclose(got.data, q, atol=1e-15)
+
+
+def test_whitespace_errors_still_name_the_line(tmp_path):
+    rows = ["   " + "   ".join(f"{v!r:>18}" for v in r) + "  " for r in TUM_ROWS]
+    rows[2] = rows[2].rsplit(" ", 3)[0]  # a short row
+    p = write(tmp_path / "t.txt", "# c\n\n" + "\n".join(rows) + "\n")
+    with pytest.raises(DataError, match=r"t\.txt:5: expected 8 numbers, got 7"):
+        read_all(io.open_stream(p, name="t.txt"))
+    rows = tum_text(TUM_ROWS, lead=" ", sep="  ").replace("0.5 ", "x ", 1)
+    with pytest.raises(DataError, match=r"t\.txt:3: not a number: 'x'"):
+        read_all(io.open_stream(write(tmp_path / "t.txt", rows), name="t.txt"))
+
+
+def test_kitti_aligned_columns(tmp_path, rng):
+    q = unit(rng, 4)
+    m = Rotation.from_quat(q, scalar_first=True).as_matrix()
+    rows = np.concatenate([m, rng.standard_normal((4, 3, 1))], axis=2).reshape(4, 12)
+    text = "".join(" " + "  ".join(f"{v: .12e}" for v in r) + " \t\n" for r in rows)
+    r = io.open_stream(write(tmp_path / "poses.txt", text))
+    assert r.format == "kitti"
+    got, _ = read_all(r)
+    assert same_rotation(got.data, q)
+
+
+BOM = "\ufeff"
+
+
+def test_byte_order_mark(tmp_path, rng):
+    p = write(tmp_path / "traj.txt", BOM + "# timestamp tx ty tz qx qy qz qw\n" + tum_text(TUM_ROWS))
+    got, _ = read_all(io.open_stream(p))
+    np.testing.assert_array_equal(got.t, tum_want(TUM_ROWS)[0])
+    p = write(tmp_path / "bare.txt", BOM + tum_text(TUM_ROWS))  # the mark before the first number
+    got, _ = read_all(io.open_stream(p))
+    np.testing.assert_array_equal(got.t, tum_want(TUM_ROWS)[0])
+    m = Rotation.from_quat(unit(rng, 2), scalar_first=True).as_matrix()
+    rows = np.concatenate([m, np.zeros((2, 3, 1))], axis=2).reshape(2, 12)
+    p = write(tmp_path / "poses.txt", BOM + "\n".join(" ".join(f"{v:.12e}" for v in r) for r in rows) + "\n")
+    assert len(read_all(io.open_stream(p))[0]) == 2
+    head = "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []\n"
+    p = write(tmp_path / "gt.csv", BOM + head + "1403715524907143168,1,2,3,1,0,0,0\n")
+    r = io.open_stream(p)
+    assert r.format == "euroc" and read_all(r)[0].t[0] == 1403715524 + 0.907143168
+    p = write(tmp_path / "s.csv", BOM + "t,qw,qx,qy,qz\n0,1,0,0,0\n")
+    assert read_all(io.open_stream(p))[0].data.tolist() == [[1, 0, 0, 0]]
+
+
+@pytest.mark.parametrize("sep", [" ", ","])
+def test_hash_header_without_space_is_tum(tmp_path, sep):
+    p = write(tmp_path / "traj.txt", "#" + sep.join(F_TUM) + "\n" + tum_text(TUM_ROWS, sep=sep))
+    r = io.open_stream(p)
+    assert (r.format, r.layout) == ("tum", "xyzw") and not r.notes
+    got, _ = read_all(r)
+    t, pos, q = tum_want(TUM_ROWS)
+    np.testing.assert_array_equal(got.pos, pos)
+    np.testing.assert_allclose(got.data, q, atol=1e-15)
+
+
+F_TUM = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
+
+
+def test_comment_header_names_columns(tmp_path):
+    p = write(tmp_path / "s.csv", "# t,qx,qy,qz,qw\n0,0,0,1,0\n1,1,0,0,0\n")
+    r = io.open_stream(p)
+    assert r.layout == "named columns" and not r.notes
+    np.testing.assert_array_equal(read_all(r)[0].data, [[0, 0, 0, 1], [0, 1, 0, 0]])
+    # a comment that is no header for these rows stays a comment
+    p = write(tmp_path / "c.csv", "# recorded,by,a,robot,today\n0,1,0,0,0\n")
+    assert io.open_stream(p).layout == "wxyz"
+
+
+def test_quoted_header_names(tmp_path):
+    p = write(tmp_path / "s.csv", '"t","qx","qy","qz","qw"\n0,0,0,1,0\n"1","1","0","0","0"\n')
+    got, _ = read_all(io.open_stream(p))
+    np.testing.assert_array_equal(got.t, [0, 1])
+    np.testing.assert_array_equal(got.data, [[0, 0, 0, 1], [0, 1, 0, 0]])
+    p = write(tmp_path / "r.csv", "t,qw,qx,qy,qw\n0,1,0,0,0\n")
+    with pytest.raises(DataError, match=r"r\.csv:1: repeated column name 'qw' in the header"):
+        io.open_stream(p, name="r.csv")
+
+
+def test_headerless_layout_is_said(tmp_path):
+    rows = "\n".join(",".join(repr(v) for v in r) for r in TUM_ROWS) + "\n"
+    p = write(tmp_path / "c.csv", rows)
+    r = io.open_stream(p, name="c.csv")
+    assert r.notes == ["c.csv: no column names: read as t x y z qw qx qy qz (scalar first); "
+                       "choose with --layout xyzw or --format tum"]
+    for kw in ({"layout": "xyzw"}, {"fmt": "tum"}):  # the two ways to read TUM numbers with commas
+        r = io.open_stream(p, **kw)
+        assert not r.notes
+        np.testing.assert_allclose(read_all(r)[0].data, tum_want(TUM_ROWS)[2], atol=1e-15)
+    r = io.open_stream(write(tmp_path / "s.txt", tum_text(TUM_ROWS)), name="s.txt")
+    assert r.format == "tum" and r.notes == [
+        "s.txt: no column names: read as TUM: timestamp tx ty tz qx qy qz qw (scalar last); choose with --layout wxyz"
+    ]
+    r = io.open_stream(tmp_path / "s.txt", layout="wxyz")  # the same numbers, scalar first
+    np.testing.assert_allclose(read_all(r)[0].data, np.array(TUM_ROWS)[:, 4:], atol=1e-15)
+    err = __import__("io").StringIO()
+    c = Cleaner(io.open_stream(p, name="c.csv"))
+    c.report(err)
+    assert err.getvalue().startswith("c.csv: no column names")
+
+
+def test_layout_on_named_columns_is_ignored(tmp_path):
+    p = write(tmp_path / "s.csv", "t,qw,qx,qy,qz\n0,0,1,0,0\n")
+    r = io.open_stream(p, layout="xyzw", name="s.csv")
+    assert r.notes == ["s.csv: --layout xyzw ignored: the file names its columns"]
+    np.testing.assert_array_equal(read_all(r)[0].data, [[0, 1, 0, 0]])

@@ -133,6 +133,8 @@ class Cleaner:
     def report(self, err):
         """Write the drop count and the normalisation note to ``err``."""
         name = self.reader.name
+        if hasattr(self.reader, "say"):
+            self.reader.say(err)
         dropped = self.dropped + getattr(self.reader, "skipped", 0)
         if dropped:
             print(f"{name}: dropped {dropped} invalid row{'s' if dropped != 1 else ''}", file=err)

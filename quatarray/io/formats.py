@@ -45,3 +45,29 @@ def output_format(path):
 
 def empty(name):
     return DataError(f"{name}: empty file (no data rows)")
+
+
+def shown(text, limit=60):
+    """`text` as an error message may show it: characters that are not printable
+    (control characters, undecodable bytes) escaped as ``repr`` escapes them
+    (``\\x00``), and cut to `limit` characters with ``…``.
+
+    Examples
+    --------
+    >>> shown("ab\\x00c")
+    'ab\\\\x00c'
+    >>> shown(b"\\xff\\xfe" + b"x" * 70, limit=10)
+    '\\\\xff\\\\xfex…'
+    """
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "backslashreplace")
+    s = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    return s if len(s) <= limit else s[: limit - 1] + "…"
+
+
+def unquoted(name):
+    """A header name without the quotes a spreadsheet may have put around it."""
+    name = name.strip()
+    if len(name) >= 2 and name[0] == name[-1] and name[0] in "\"'":
+        return name[1:-1].strip()
+    return name

@@ -24,6 +24,7 @@ in Python, to name the first bad line.
 """
 
 import os
+import re
 import weakref
 
 import numpy as np
@@ -116,6 +117,19 @@ class Reader:
     skipped = 0
     format = ""
     columns = ()
+
+    @property
+    def notes(self):
+        """One-line remarks for stderr: the layout assumed for a file without column
+        names, an option that does not apply, a frame count that does not match."""
+        return self.__dict__.setdefault("_notes", [])
+
+    def say(self, err):
+        """Write the notes not written yet to `err`."""
+        said = self.__dict__.get("_said", 0)
+        for note in self.notes[said:]:
+            print(note, file=err)
+        self._said = len(self.notes)
 
     @property
     def noun(self):
@@ -320,16 +334,16 @@ class TextReader(Reader):
         head = []
         with open(self.path, "rb") as f:
             for raw in f:
-                head.append(raw.decode("utf-8", "replace").rstrip("\r\n"))
-                if len(head) >= 1000 or (head[-1].strip() and not head[-1].lstrip().startswith("#")):
+                line = raw.decode("utf-8", "backslashreplace").rstrip("\r\n")
+                line = line if head else line.removeprefix("\ufeff")  # a byte-order mark
+                head.append(line)
+                if len(head) >= 1000 or (line.strip() and not line.lstrip().startswith("#")):
                     break
         if not any(h.strip() for h in head):
             raise F.empty(name)
         first = head[0].lstrip()
-        if fmt == "euroc" or (fmt == "text" and first.startswith("#timestamp")) or (
-            fmt == "text" and "q_RS_w" in first
-        ):
-            return self._euroc(head)
+        if fmt == "euroc" or (fmt == "text" and first.startswith("#timestamp") and "_RS_" in first):
+            return self._euroc(head, layout)
         # skip comments and blank lines at the top
         i = 0
         while i < len(head) and (not head[i].strip() or head[i].lstrip().startswith("#")):
@@ -339,17 +353,26 @@ class TextReader(Reader):
         line = head[i]
         self.skip = i  # lines before the first data (or header) line
         delim = "," if "," in line else ("\t" if "\t" in line else " ")
+        # any run of spaces and tabs separates the columns of whitespace-separated text
+        self.squeeze = delim != ","
+        delim = " " if self.squeeze else delim
+        self.delim = delim
         fields = _split(line, delim)
         numeric = all(_is_number(x) for x in fields)
+        # a `# timestamp tx ty tz qx qy qz qw` comment just above the numbers names them
+        named = self._comment_header(head[i - 1], len(fields)) if numeric and i and fmt in ("text", "csv") else None
         if fmt == "text":
-            if numeric and delim != "," and len(fields) == 8 and self.kind == "quat":
+            if named is not None:
+                fmt = "tum" if [n.lower() for n in named] == F.TUM_NAMES else "csv"
+            elif numeric and self.squeeze and len(fields) == 8 and self.kind == "quat" and layout is None:
                 fmt = "tum"
-            elif numeric and delim != "," and len(fields) == 12 and self.kind == "quat":
+                self._assumed("TUM: timestamp tx ty tz qx qy qz qw (scalar last)", "--layout wxyz")
+            elif numeric and self.squeeze and len(fields) == 12 and self.kind == "quat":
                 fmt = "kitti"
             else:
                 fmt = "csv"
         self.format = fmt
-        self.delim = delim
+        self.header_line = False  # whether pyarrow skips a header line
         if fmt in ("tum", "kitti"):
             if self.kind != "quat":
                 raise DataError(f"{name}: a {fmt} file holds poses, not vectors")
@@ -366,9 +389,10 @@ class TextReader(Reader):
                 self.matrix = True
                 self.layout = "matrix 3x4 [R | t]"
             self.header = False
+            self._ignored(layout, f"{fmt} files are read as {'qx qy qz qw' if fmt == 'tum' else '3x4 pose matrices'}")
             return
         # csv
-        if numeric:
+        if numeric and named is None:
             self.header = False
             n = len(fields)
             self.layout = layout or "wxyz"
@@ -384,6 +408,10 @@ class TextReader(Reader):
                 self.t, self.pos = shapes[n]
                 self.names = ([self.t] if self.t else []) + (self.pos or []) + qn
                 self.q = order
+                if layout is None:
+                    cols = " ".join(([self.t] if self.t else []) + (self.pos or []) + ["qw", "qx", "qy", "qz"])
+                    how = "--layout xyzw" + (" or --format tum" if n == 8 else "")
+                    self._assumed(f"{cols} (scalar first)", how)
             else:
                 if n not in (3, 4):
                     raise DataError(f"{name}:{i + 1}: expected 3 (x y z) or 4 (t x y z) numbers, got {n}")
@@ -392,31 +420,64 @@ class TextReader(Reader):
                 self.names = ([self.t] if self.t else []) + ["x", "y", "z"]
                 self.q = ["x", "y", "z"]
             self.columns = list(self.names)
+            return
+        self.header = True
+        if named is not None:
+            self.names = named
         else:
-            self.header = True
-            self.names = [f.strip() for f in fields]
-            if len(set(self.names)) != len(self.names):
-                raise DataError(f"{name}:{i + 1}: repeated column names in the header")
-            self.t, self.pos, self.q = _find_roles(self.names, self.kind, name, i + 1)
+            self.names = [F.unquoted(f) for f in fields]
             self.skip = i + 1
-            self.layout = "named columns"
-            self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
+            self.header_line = True
+            lineno = i + 1
+            seen = set()
+            for n in self.names:
+                if n in seen:
+                    raise DataError(f"{name}:{lineno}: repeated column name {F.shown(n)!r} in the header")
+                seen.add(n)
+        self.t, self.pos, self.q = _find_roles(self.names, self.kind, name, i + (0 if named else 1))
+        self.layout = "named columns"
+        self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
+        self._ignored(layout, "the file names its columns")
 
-    def _euroc(self, head):
+    def _comment_header(self, line, n):
+        """The column names a comment line gives (``# t qw qx qy qz``), or None when it is
+        no header for rows of `n` fields."""
+        text = line.lstrip()[1:]
+        names = [F.unquoted(x) for x in _split(text, self.delim)]
+        if len(names) != n or len(set(names)) != n or any(not x or _is_number(x) for x in names):
+            return None
+        try:
+            _find_roles(names, self.kind, self.name, 0)
+        except DataError:
+            return None
+        return names
+
+    def _assumed(self, what, how):
+        """Note the column layout taken for a file that does not name its columns."""
+        self.notes.append(f"{self.name}: no column names: read as {what}; choose with {how}")
+
+    def _ignored(self, layout, why):
+        """Note a ``--layout`` that does not apply to this file."""
+        if layout is not None:
+            self.notes.append(f"{self.name}: --layout {layout} ignored: {why}")
+
+    def _euroc(self, head, layout):
         name = self.name
         if self.kind != "quat":
             raise DataError(f"{name}: a euroc file holds poses, not vectors")
         line = head[0].lstrip().lstrip("#")
-        names = [n.strip().split(" [")[0].strip() for n in line.split(",")]
+        names = [F.unquoted(F.unquoted(n).split(" [")[0]) for n in line.split(",")]
         missing = [c for c in [F.EUROC_TIME] + F.EUROC_POS + F.EUROC_QUAT if c not in names]
         if missing:
             raise DataError(f"{name}:1: missing column {', '.join(missing)} (EuRoC ground truth)")
         self.format, self.delim, self.header, self.skip = "euroc", ",", True, 1
+        self.squeeze, self.header_line = False, True
         self.names = names
         self.t, self.pos, self.q = F.EUROC_TIME, list(F.EUROC_POS), list(F.EUROC_QUAT)
         self.ns_time = True
         self.layout = "wxyz"
         self.columns = [self.t] + self.pos + self.q
+        self._ignored(layout, "euroc files are read as q_RS_w q_RS_x q_RS_y q_RS_z")
 
     @property
     def has_time(self):
@@ -435,9 +496,11 @@ class TextReader(Reader):
             for lineno, raw in enumerate(f, 1):
                 if lineno <= self.skip:
                     continue
-                line = raw.decode("utf-8", "replace").rstrip("\r\n")
-                if not line or line.lstrip().startswith("#"):  # pyarrow skips comments too
-                    continue
+                line = raw.decode("utf-8", "backslashreplace").rstrip("\r\n")
+                if lineno == 1:
+                    line = line.removeprefix("\ufeff")
+                if not (line.strip() if self.squeeze else line) or line.lstrip().startswith("#"):
+                    continue  # pyarrow skips comments and empty lines too
                 yield lineno, line
 
     def _line_of_row(self, row):
@@ -463,7 +526,7 @@ class TextReader(Reader):
             types[self.t] = pa.int64()
         width = max(16, 12 * len(self.names))
         ro = pcsv.ReadOptions(
-            skip_rows=self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26)),
+            skip_rows=int(self.header_line) if self.squeeze else self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26)),
         )
 
         def skip(row):
@@ -488,7 +551,8 @@ class TextReader(Reader):
         row0 = 0
         reader = failed = None
         try:
-            reader = pcsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co)
+            src = _Squeezed(self.path) if self.squeeze else self.path
+            reader = pcsv.open_csv(src, read_options=ro, parse_options=po, convert_options=co)
             for batch in reader:
                 if batch.num_rows == 0:
                     continue
@@ -545,7 +609,7 @@ class TextReader(Reader):
         n = len(self.names)
         what = "numbers" if not self.header else "fields"
         for lineno, line in self._data_lines():
-            fields = _split(line, self.delim) if self.delim != " " else line.split(" ")
+            fields = _split(line, self.delim)
             if len(fields) != n:
                 raise DataError(f"{self.name}:{lineno}: expected {n} {what}, got {len(fields)}")
             for c in needed:
@@ -557,6 +621,65 @@ class TextReader(Reader):
                     kind = "an integer" if self.ns_time and c == self.t else "a number"
                     raise DataError(f"{self.name}:{lineno}: not {kind}: {s!r} in column {c}")
         raise DataError(f"{self.name}: {exc}")
+
+
+class _Squeezed:
+    """A whitespace-separated text file as pyarrow's reader should see it: every run of
+    spaces and tabs one space, none at the ends of a line, comment and blank lines
+    and a byte-order mark gone (as numpy's ``loadtxt`` reads such files).
+
+    A file-like object with ``read``; whole lines are transformed, block by block.
+    """
+
+    _ENDS = re.compile(rb"^[ \t]+|[ \t]+(?=\r?$)", re.M)  # spaces at the ends of a line
+    _RUNS = re.compile(rb"[ \t]{2,}|\t")
+
+    def __init__(self, path, block=1 << 20):
+        self.f = open(path, "rb")
+        self.block = block
+        self.rest = b""  # an incomplete last line, waiting for its end
+        self.out = b""  # transformed text not handed out yet
+        self.first = True
+        self.closed = False
+
+    def _squeeze(self, text):
+        if self.first:
+            text, self.first = text.removeprefix(b"\xef\xbb\xbf"), False
+        if text[:1] in b" \t" or b"\n " in text or b"\n\t" in text or b" \n" in text or b"\t\n" in text \
+                or b" \r" in text or b"\t\r" in text:
+            text = self._ENDS.sub(b"", text)
+        if b"#" in text or b"\n\n" in text or b"\n\r\n" in text or text[:1] in b"\r\n":
+            kept = [ln for ln in text.split(b"\n")[:-1] if ln.strip() and not ln.startswith(b"#")]
+            text = b"\n".join(kept) + b"\n" if kept else b""
+        if b"  " in text or b"\t" in text:
+            text = self._RUNS.sub(b" ", text)
+        return text
+
+    def read(self, n=-1):
+        while len(self.out) < max(n, 1) and self.f is not None:
+            data = self.f.read(max(n, self.block))
+            text = self.rest + data
+            if not data:  # end of file: the last line, ended
+                self.rest = b""
+                self.f.close()
+                self.f = None
+                if text:
+                    self.out += self._squeeze(text + b"\n")
+                break
+            cut = text.rfind(b"\n") + 1
+            self.rest = text[cut:]
+            if cut:
+                self.out += self._squeeze(text[:cut])
+        if n is None or n < 0:
+            n = len(self.out)
+        out, self.out = self.out[:n], self.out[n:]
+        return out
+
+    def close(self):
+        if self.f is not None:
+            self.f.close()
+            self.f = None
+        self.closed = True
 
 
 def _released(ref, timeout=2.0):
