@@ -538,6 +538,7 @@ def cmd_info(args):
     width = max(len(k) for k, _ in lines)
     for k, v in lines:
         print(f"{k + ':':<{width + 1}} {v}")
+    reader.say(sys.stderr)
     return 0
 
 
@@ -608,7 +609,10 @@ def build_parser():
     g.add_argument("--format", choices=FORMATS, default="auto",
                    help="input format (default: by extension and header)")
     g.add_argument("--layout", choices=("wxyz", "xyzw"), default=None,
-                   help="quaternion column order of inputs without named columns (default wxyz)")
+                   help="quaternion column order of inputs without named columns (npy, headerless text; "
+                        "default wxyz, said on stderr): 8 headerless numbers a row are t x y z qw qx qy qz "
+                        "with commas and TUM's t x y z qx qy qz qw with spaces; --layout or --format tum "
+                        "chooses")
     g.add_argument("--joint", metavar="NAME", help="BVH joint to read (default: the root)")
     g.add_argument("--chunk", type=_rows, default=DEFAULT_CHUNK, metavar="ROWS",
                    help=f"rows per chunk (default {DEFAULT_CHUNK})")

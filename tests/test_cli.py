@@ -543,3 +543,33 @@ def test_bounded_memory_conversion(tmp_path):
     assert out.shape == (n, 3, 3)
     np.testing.assert_allclose(out[-1], rot([0.5, 0.5, 0.5, 0.5]).as_matrix(), atol=1e-15)
     np.testing.assert_allclose(out[7], rot([0, 0, 0, 1]).as_matrix(), atol=1e-15)
+
+
+# --------------------------------------------------------------------------
+# hardening (issue 14)
+
+
+def test_headerless_comma_tum_layout_said_and_chosen(capsys, tmp_path):
+    rows = [[0.0, 1, 2, 3, 0, 0, 0, 1], [0.5, 1, 2, 3, 0, 0, 1, 0]]
+    (tmp_path / "c.csv").write_text("".join(",".join(map(str, r)) + "\n" for r in rows))
+    rc, _, err = cli(capsys, "convert", tmp_path / "c.csv", tmp_path / "o.csv", "--to", "quat")
+    assert rc == 0 and err.splitlines() == [
+        f"{tmp_path / 'c.csv'}: no column names: read as t x y z qw qx qy qz (scalar first); "
+        "choose with --layout xyzw or --format tum"
+    ]
+    for opt in (["--layout", "xyzw"], ["--format", "tum"]):
+        rc, _, err = cli(capsys, "convert", tmp_path / "c.csv", tmp_path / "o.csv", "--to", "quat", "--force", *opt)
+        assert rc == 0 and err == ""
+        got = read_csv(tmp_path / "o.csv")
+        np.testing.assert_array_equal(np.column_stack([got[c] for c in ("qw", "qx", "qy", "qz")]),
+                                      [[1, 0, 0, 0], [0, 0, 0, 1]])
+    rc, out, _ = cli(capsys, "convert", "--help")
+    assert rc == 0 and "--format tum" in " ".join(out.split())
+
+
+def test_layout_on_named_columns_said(capsys, stream, tmp_path):
+    path, t, pos, q = stream
+    rc, _, err = cli(capsys, "unflip", path, tmp_path / "o.csv", "--layout", "xyzw")
+    assert rc == 0 and f"{path}: --layout xyzw ignored: the file names its columns" in err.splitlines()
+    got = read_csv(tmp_path / "o.csv")
+    assert same_rotation(np.column_stack([got[c] for c in ("qw", "qx", "qy", "qz")]), q)
