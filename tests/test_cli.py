@@ -572,4 +572,5 @@ def test_layout_on_named_columns_said(capsys, stream, tmp_path):
     rc, _, err = cli(capsys, "unflip", path, tmp_path / "o.csv", "--layout", "xyzw")
     assert rc == 0 and f"{path}: --layout xyzw ignored: the file names its columns" in err.splitlines()
     got = read_csv(tmp_path / "o.csv")
-    assert same_rotation(np.column_stack([got[c] for c in ("qw", "qx", "qy", "qz")]), q)
+    assert same_rotation(np.column_stack([got[c] for c in ("qw", "qx", "qy", "qz")]),
+                         q / np.linalg.norm(q, axis=1)[:, None])
