@@ -639,3 +639,28 @@ def test_layout_on_named_columns_is_ignored(tmp_path):
     r = io.open_stream(p, layout="xyzw", name="s.csv")
     assert r.notes == ["s.csv: --layout xyzw ignored: the file names its columns"]
     np.testing.assert_array_equal(read_all(r)[0].data, [[0, 1, 0, 0]])
+
+
+@pytest.mark.parametrize("says, cut", [(1000, 0), (2, 0), (3, 1)], ids=["too-few", "too-many", "cut-short"])
+def test_bvh_frame_count_checked(tmp_path, says, cut):
+    text = BVH.replace("Frames: 3", f"Frames: {says}")
+    if cut:
+        text = text[: text.rindex("7 8 9 90")]  # the last frame lost
+    p = write(tmp_path / "m.bvh", text)
+    held = 3 - cut
+    with pytest.raises(DataError, match=rf"^m\.bvh:17: 'Frames:' says {says} frames, the file holds {held}$"):
+        read_all(io.open_stream(p, name="m.bvh"))
+    got, clean = read_all(io.open_stream(p, name="m.bvh", on_invalid="drop"), "drop")
+    assert len(got) == held
+    err = __import__("io").StringIO()
+    clean.report(err)
+    assert err.getvalue() == f"m.bvh:17: 'Frames:' says {says} frames, the file holds {held}; read those {held}\n"
+
+
+def test_bvh_huge_angles_refused(tmp_path):
+    p = write(tmp_path / "m.bvh", BVH.replace("-40 50 170", "-40 1e308 170"))
+    with pytest.raises(DataError, match=r"^m\.bvh:20: angle 1e\+308 out of range \(\|angle\| > 1e\+09 degrees"):
+        read_all(io.open_stream(p, name="m.bvh"))
+    got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
+    np.testing.assert_array_equal(got.t, [0, 1])
+    assert clean.dropped == 1

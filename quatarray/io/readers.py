@@ -828,6 +828,7 @@ class BvhReader(Reader):
                 low = line.strip().lower()
                 if low.startswith("frames:"):
                     frames = _parse_num(line.split(":", 1)[1], int, name, lineno, "frame count")
+                    self.frames_line = lineno
                 elif low.startswith("frame time:"):
                     frame_time = _parse_num(line.split(":", 1)[1], float, name, lineno, "frame time")
                     self.data_line = lineno + 1
@@ -886,6 +887,13 @@ class BvhReader(Reader):
                     bad = next(s for s in tok if not _is_number(s))
                     raise DataError(f"{name}:{lineno}: not a number: {bad!r}") from None
                 frame_idx.append(k)
+        held = self.skipped + len(rows)
+        if self.frames is not None and held != self.frames:
+            what = (f"{name}:{self.frames_line}: 'Frames:' says {self.frames} frame{'s' if self.frames != 1 else ''}, "
+                    f"the file holds {held}")
+            if not self.drop:
+                raise DataError(what)
+            self.notes.append(f"{what}; read those {held}")
         if not rows:
             raise F.empty(name)
         return np.array(rows), np.array(frame_idx)
@@ -900,10 +908,24 @@ class BvhReader(Reader):
             m = motion[a : a + self.chunk]
             ang = m[:, self.rot_idx]
             fin = np.isfinite(ang).all(axis=1)
+            huge = fin & (np.abs(np.where(fin[:, None], ang, 0)) > MAX_DEGREES).any(axis=1)
+            if huge.any():
+                i = int(np.argmax(huge))
+                if not self.drop:
+                    v = float(ang[i][np.argmax(np.abs(ang[i]))])
+                    raise DataError(f"{self.where(int(idx[a + i]))}: angle {v!r} out of range "
+                                    f"(|angle| > {MAX_DEGREES:.0e} degrees: no precision left for the rotation)")
+                fin &= ~huge  # a nan row, dropped by the Cleaner
             q = np.full((len(m), 4), np.nan)
             q[fin] = qa.from_euler(self.seq, ang[fin], degrees=True)
             pos = m[:, self.pos_idx] if self.pos_idx else None
             yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))
+
+
+# BVH angles beyond this many degrees are refused: a float64 angle of 1e9 degrees
+# still resolves 1e-7 degrees, one of 1e308 nothing at all (the angle is not reduced
+# mod 360, which would only hide that its rotation is lost)
+MAX_DEGREES = 1e9
 
 
 def _parse_num(s, typ, name, lineno, what):
