@@ -664,3 +664,70 @@ def test_bvh_huge_angles_refused(tmp_path):
     got, clean = read_all(io.open_stream(p, on_invalid="drop"), "drop")
     np.testing.assert_array_equal(got.t, [0, 1])
     assert clean.dropped == 1
+
+
+def report_of(reader, **kw):
+    got, clean = read_all(reader, **kw)
+    err = __import__("io").StringIO()
+    clean.report(err)
+    return got, err.getvalue()
+
+
+def test_real_text_precision_not_reported(data_dir, tmp_path):
+    for name in ("tum_freiburg1_xyz_groundtruth.txt", "tum_freiburg2_desk_groundtruth.txt", "kitti_00_poses.txt"):
+        got, err = report_of(io.open_stream(data_dir / name))
+        assert err == "", name
+        np.testing.assert_allclose(np.linalg.norm(got.data, axis=1), 1, atol=1e-15)  # still normalised
+    # one row put off its rotation by more than its 7 digits explain
+    lines = (data_dir / "kitti_00_poses.txt").read_text().splitlines()
+    f = lines[100].split()
+    f[0] = f"{float(f[0]) * 1.001:.6e}"
+    lines[100] = " ".join(f)
+    p = write(tmp_path / "k.txt", "\n".join(lines) + "\n")
+    _, err = report_of(io.open_stream(p, name="k.txt"))
+    assert err == ("k.txt: projected 1 non-orthonormal rotation matrix (largest |R^T R - I| = 0.00195)\n")
+    lines = (data_dir / "tum_freiburg1_xyz_groundtruth.txt").read_text().splitlines()
+    f = lines[10].split()
+    f[7] = f"{float(f[7]) * 1.01:.4f}"
+    lines[10] = " ".join(f)
+    p = write(tmp_path / "t.txt", "\n".join(lines) + "\n")
+    _, err = report_of(io.open_stream(p, name="t.txt"))
+    assert err.startswith("t.txt: normalised 1 non-unit quaternion (largest | |q| - 1 | = 0.00")
+
+
+def test_nine_decimal_text_float32_noise_not_reported(tmp_path, rng):
+    q = unit(rng, 50).astype(np.float32).astype(np.float64) * (1 + 1.1e-7)
+    p = write(tmp_path / "t.txt", "".join(f"{i} 0 0 0 " + " ".join(f"{v:.9f}" for v in r[[1, 2, 3, 0]]) + "\n"
+                                          for i, r in enumerate(q)))
+    got, err = report_of(io.open_stream(p))
+    assert "normalised" not in err
+    np.testing.assert_allclose(np.linalg.norm(got.data, axis=1), 1, atol=1e-15)
+    p = write(tmp_path / "u.txt", open(p).read().replace(f"{q[3, 0]:.9f}\n", f"{q[3, 0] * 1.001:.9f}\n"))
+    assert "normalised 1 non-unit quaternion" in report_of(io.open_stream(p))[1]
+
+
+def test_npy_matrices_not_orthonormal_reported(tmp_path, rng):
+    m = Rotation.from_quat(unit(rng, 10), scalar_first=True).as_matrix()
+    np.save(tmp_path / "m.npy", m)
+    assert report_of(io.open_stream(tmp_path / "m.npy"))[1] == ""
+    m[[2, 5]] *= np.array([1.01, 1.0001])[:, None, None]
+    np.save(tmp_path / "m.npy", m)
+    got, err = report_of(io.open_stream(tmp_path / "m.npy", name="m.npy"))
+    assert err == "m.npy: projected 2 non-orthonormal rotation matrices (largest |R^T R - I| = 0.0201)\n"
+    assert same_rotation(got.data[2], Rotation.from_matrix(m[2] / 1.01).as_quat(scalar_first=True))
+
+
+@pytest.mark.parametrize("scale", [1e308, 1e-200, -1e300])
+def test_huge_and_tiny_quaternions_read_correctly(tmp_path, rng, scale):
+    q = unit(rng, 3)
+    raw = q.copy()
+    raw[1] = np.array([1.0, 1, 1, 1]) * scale
+    np.save(tmp_path / "q.npy", raw)
+    got, err = report_of(io.open_stream(tmp_path / "q.npy", name="q.npy"))
+    np.testing.assert_allclose(got.data, np.vstack([q[0], np.sign(scale) * np.full(4, 0.5), q[2]]), atol=1e-15)
+    assert err.startswith("q.npy: normalised 1 non-unit quaternion (largest | |q| - 1 | = ")
+    if scale == 1e308:
+        assert err.endswith("= > 1.8e+308)\n")
+    p = write(tmp_path / "z.csv", "qw,qx,qy,qz\n0,0,0,0\n")
+    with pytest.raises(DataError, match=r"z\.csv:2: zero quaternion"):
+        read_all(io.open_stream(p, name="z.csv"))

@@ -4,7 +4,11 @@ A row is bad when its time or position is not finite, its quaternion has a
 non-finite component or is zero, or (where order matters) its time is not
 after the previous row's. Slightly non-unit quaternions are the normal case
 in real recordings: they are normalised and the largest deviation ``| |q| - 1 |``
-is kept for the report.
+is kept for the report. Deviations the input's own rounding explains are not
+reported: for text, those its printed digits allow (the reader's
+``tolerance``, at least 1e-6); for binary input, the dtype's rounding level.
+A quaternion whose norm over- or underflows (1e308 · q) is the rotation q:
+its norm is taken after dividing by its largest component.
 """
 
 import numpy as np
@@ -75,6 +79,9 @@ class Cleaner:
         if self.reader.kind == "quat":
             norms = qa.norm(data)
             good = np.isfinite(norms) & (norms > 0)
+            if not good.all():
+                data, norms, good = _rescaled(data, norms, good)
+                ch = ch.replace(data=data)
         else:
             norms = None
             good = np.isfinite(data).all(axis=1)
@@ -88,11 +95,14 @@ class Cleaner:
         if self.ordered and ch.t is not None:
             good = self._order(ch, good)
         if self.normalize:
-            dev = np.abs(norms[good] - 1.0)
-            count = int(np.count_nonzero(dev > _TOL[data.dtype.char])) if dev.size else 0
-            if count:
-                self.normalised += count
-                self.max_dev = max(self.max_dev, float(dev.max()))
+            with np.errstate(over="ignore", invalid="ignore"):
+                dev = np.abs(norms[good] - 1.0)
+            rounding = ROUNDING[data.dtype.char]
+            if dev.size and (dev > rounding).any():
+                count = int(np.count_nonzero(dev > max(rounding, getattr(self.reader, "tolerance", 0.0))))
+                if count:
+                    self.normalised += count
+                    self.max_dev = max(self.max_dev, float(dev.max()))
                 with np.errstate(invalid="ignore", divide="ignore"):
                     ch = ch.replace(data=qa.normalize(data))
         return ch, good
@@ -139,16 +149,45 @@ class Cleaner:
         if dropped:
             print(f"{name}: dropped {dropped} invalid row{'s' if dropped != 1 else ''}", file=err)
         if self.normalised:
-            print(
-                f"{name}: normalised {self.normalised} non-unit quaternion"
-                f"{'s' if self.normalised != 1 else ''} (largest | |q| - 1 | = {self.max_dev:.3g})",
-                file=err,
-            )
+            print(fixed_note(name, "normalised", self.normalised, "non-unit quaternion", "| |q| - 1 |",
+                             self.max_dev), file=err)
+        projected = getattr(self.reader, "projected", 0)
+        if projected:
+            print(fixed_note(name, "projected", projected, "non-orthonormal rotation matrix", "|R^T R - I|",
+                             self.reader.max_projection, plural="non-orthonormal rotation matrices"), file=err)
 
 
-# deviations below rounding level are not worth a report (but are still normalised by
-# the conversions themselves where it matters)
-_TOL = {"f": 1e-6, "d": 1e-12}
+def fixed_note(name, verb, count, noun, measure, largest, plural=None):
+    """The one-line report of rows fixed on the way, e.g. ``walk.csv: normalised 3
+    non-unit quaternions (largest | |q| - 1 | = 0.002)``."""
+    noun = noun if count == 1 else plural or noun + "s"
+    size = f"{largest:.3g}" if np.isfinite(largest) else f"> {np.finfo(np.float64).max:.3g}"
+    return f"{name}: {verb} {count} {noun} (largest {measure} = {size})"
+
+
+def _rescaled(data, norms, good):
+    """``(data, norms, good)`` with the finite, non-zero rows whose norm over- or
+    underflowed divided by their largest component (the same rotation), their norms
+    taken from that."""
+    import quatarray as qa
+
+    fin = np.isfinite(data).all(axis=1)
+    scale = np.abs(np.where(fin[:, None], data, 0)).max(axis=1)
+    fix = ~good & fin & (scale > 0)
+    if not fix.any():
+        return data, norms, good
+    data, norms = np.array(data), np.array(norms)  # copies: a chunk may be a read-only map
+    data[fix] /= scale[fix, None]
+    with np.errstate(over="ignore"):
+        norms[fix] = qa.norm(data[fix]) * scale[fix]
+    return data, norms, good | fix
+
+
+# deviations below rounding level are not worth a report (nor a normalisation); text
+# input is not reported below its printed digits' rounding, and never below TEXT_ROUNDING
+# (float32 sources printed with many digits)
+ROUNDING = {"f": 1e-6, "d": 1e-12}
+TEXT_ROUNDING = 1e-6
 
 
 def _fmt(row):

@@ -30,6 +30,7 @@ import weakref
 import numpy as np
 
 from . import formats as F
+from .clean import ROUNDING, TEXT_ROUNDING
 from .errors import DataError, UsageError
 from .formats import is_zarr
 from .streams import Chunk
@@ -117,6 +118,8 @@ class Reader:
     skipped = 0
     format = ""
     columns = ()
+    projected = 0  # rotation matrices that were not orthonormal (above rounding level)
+    max_projection = 0.0  # the largest |R^T R - I| entry among them
 
     @property
     def notes(self):
@@ -267,6 +270,13 @@ def _from_matrix(m, reader, row0, bad_ok=False):
     m = np.asarray(m, dtype=np.float64) if m.dtype.kind != "f" else m
     det = np.linalg.det(m) if len(m) else np.zeros(0)
     ok = np.isfinite(det) & (det > 0)
+    if ok.any():
+        with np.errstate(over="ignore", invalid="ignore"):
+            dev = np.abs(np.einsum("nji,njk->nik", m[ok], m[ok]) - np.eye(3)).max(axis=(1, 2))
+        over = dev > max(ROUNDING[m.dtype.char], getattr(reader, "matrix_tolerance", 0.0))
+        if over.any():
+            reader.projected += int(np.count_nonzero(over))
+            reader.max_projection = max(reader.max_projection, float(dev.max()))
     if ok.all():
         return qa.from_matrix(m)
     i = int(np.argmin(ok))
@@ -288,6 +298,16 @@ def _is_number(s):
         return True
     except ValueError:
         return False
+
+
+def _half_ulp(s):
+    """Half a unit in the last place written of the number `s`: its rounding (0 for an
+    integer, taken as exact; 5e-7 for ``1.000000e-01``: exponents below 0 do not count,
+    as the components rounded are at most 1 in size)."""
+    mant, _, exp = F.unquoted(s).lower().partition("e")
+    if "." not in mant and not exp:
+        return 0.0
+    return 0.5 * 10.0 ** (max(int(exp or 0), 0) - len(mant.partition(".")[2]))
 
 
 def _split(line, delim):
@@ -326,6 +346,7 @@ class TextReader(Reader):
         self.ns_time = False
         self.matrix = False
         self._sniff(fmt, layout)
+        self.tolerance, self.matrix_tolerance = self._rounding()
 
     # -- header ------------------------------------------------------------
 
@@ -438,6 +459,21 @@ class TextReader(Reader):
         self.layout = "named columns"
         self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
         self._ignored(layout, "the file names its columns")
+
+    def _rounding(self, sample=200):
+        """``(| |q| - 1 |, |R^T R - I|)`` the rounding of this text's printed digits explains
+        (at least ``TEXT_ROUNDING``), from the digits of its first rows (the median row's)."""
+        cols = [c for c in self.names if c[0] == "r"] if self.matrix else self.q if self.kind == "quat" else []
+        idx = [self.names.index(c) for c in cols]
+        bounds = []
+        for k, (_, line) in enumerate(self._data_lines()):
+            if k >= sample:
+                break
+            fields = _split(line, self.delim)
+            if len(fields) == len(self.names) and all(_is_number(fields[j]) for j in idx):
+                bounds.append(sum(_half_ulp(fields[j]) for j in idx))
+        best = float(np.median(bounds)) if bounds else 0.0
+        return (max(best, TEXT_ROUNDING), max(2 * best, TEXT_ROUNDING)) if idx else (0.0, 0.0)
 
     def _comment_header(self, line, n):
         """The column names a comment line gives (``# t qw qx qy qz``), or None when it is
