@@ -187,17 +187,12 @@ class _RateTimes:
 class _FileTimes:
     """New times from a file: non-decreasing, inside the key times."""
 
-    def __init__(self, path, fmt):
+    def __init__(self, path, fmt, order="non-decreasing"):
         self.name = path
-        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto"), dtype=np.float64)
+        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order),
+                                dtype=np.float64)
         if self.times.size == 0:
             raise DataError(f"{path}: no times")
-        if not np.isfinite(self.times).all():
-            raise DataError(f"{path}: row {int(np.argmin(np.isfinite(self.times)))}: time is not finite")
-        d = np.diff(self.times)
-        if (d < 0).any():
-            i = int(np.argmax(d < 0)) + 1
-            raise DataError(f"{path}: row {i}: times must not decrease ({self.times[i]!r} after {self.times[i - 1]!r})")
         self.p = 0
         self.t0 = None
 
@@ -216,17 +211,35 @@ class _FileTimes:
             )
 
 
-def timed_chunks(reader, in_rate):
-    """The reader's chunks, with times ``row / in_rate`` when the file has none (a dropped
-    row keeps its time out, as the rows after it keep theirs)."""
-    for ch in reader:
-        if not reader.has_time:
-            ch = ch.replace(t=(ch.row0 + np.arange(len(ch))) / in_rate)
-        yield ch
+def timed_chunks(reader, in_rate, in_times=None):
+    """The reader's chunks, with times when the file has none: ``row / in_rate``, or row
+    i's time from `in_times` (a :class:`_FileTimes` of ``--in-times``, as many times
+    as the stream has rows). A dropped row keeps its time out, as the rows after it keep
+    theirs."""
+    if reader.has_time:
+        yield from reader
+        return
+    rows = 0
+    chunks = iter(reader)
+    for ch in chunks:
+        k = ch.row0 + np.arange(len(ch))
+        if in_times is None:
+            yield ch.replace(t=k / in_rate)
+        elif len(ch) and k[-1] >= in_times.times.size:
+            rows = ch.row0 + len(ch) + sum(len(c) for c in chunks)
+            break
+        else:
+            yield ch.replace(t=in_times.times[k])
+        rows = ch.row0 + len(ch)
+    if in_times is not None and rows + reader.skipped != in_times.times.size:
+        raise DataError(f"{in_times.name} has {in_times.times.size} times but {reader.name} has "
+                        f"{rows + reader.skipped} rows; they must match")
 
 
 def cmd_resample(args):
     if args.scheduler:
+        if args.in_times:
+            raise UsageError("--in-times is not available with --scheduler; give --in-rate HZ")
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
                           method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force,
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
@@ -234,9 +247,15 @@ def cmd_resample(args):
 
     newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
     reader = _open(args, args.IN)
-    if not reader.has_time and args.in_rate is None:
-        raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ")
-    check_output(args.OUT, [args.IN] + ([args.times] if args.times else []), args.force)
+    keyed = args.in_rate is not None or args.in_times is not None
+    if not reader.has_time and not keyed:
+        raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ "
+                         "or its times with --in-times FILE")
+    if reader.has_time and keyed:
+        opt = "--in-rate" if args.in_rate is not None else "--in-times"
+        print(f"{args.IN}: has a time column; {opt} ignored", file=sys.stderr)
+    in_times = _FileTimes(args.in_times, "auto", "increasing") if args.in_times and not reader.has_time else None
+    check_output(args.OUT, [args.IN] + [f for f in (args.times, args.in_times) if f], args.force)
     if args.in_rate is not None and not args.in_rate > 0:
         raise UsageError(f"--in-rate must be positive, got {args.in_rate}")
     clean = Cleaner(reader, args.on_invalid, ordered=True)
@@ -252,13 +271,13 @@ def cmd_resample(args):
         pos = None
         if keys.pos is not None:
             pos = np.column_stack([np.interp(nt, keys.t, keys.pos[:, k]) for k in range(3)])
-        w.write(q, nt if reader.has_time or args.in_rate else None, pos)
+        w.write(q, nt if reader.has_time or keyed else None, pos)
 
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:
         buf, lo, last_q = None, 0, None
         step = max(min(args.chunk, 1 << 16), 8)
-        for ch in timed_chunks(reader, args.in_rate):
+        for ch in timed_chunks(reader, args.in_rate, in_times):
             n = len(ch)
             ch = clean(ch)
             bar.update(n)
@@ -657,8 +676,12 @@ def build_parser():
     m.add_argument("--rate", type=_positive, metavar="HZ", help="new times t0 + k/HZ up to the last key")
     m.add_argument("--times", metavar="FILE", help="new times from a file (npy, one per line, or a stream)")
     s.add_argument("--method", choices=METHODS, default="bezier", help="interpolation (default bezier)")
-    s.add_argument("--in-rate", type=_positive, metavar="HZ",
+    k = s.add_mutually_exclusive_group()
+    k.add_argument("--in-rate", type=_positive, metavar="HZ",
                    help="sampling rate of an input without a time column (row i is at i/HZ s)")
+    k.add_argument("--in-times", metavar="FILE",
+                   help="key times of an input without a time column, one a line (as KITTI's times.txt): "
+                        "as many as its rows, strictly increasing")
     s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
     s.set_defaults(func=cmd_resample)
 

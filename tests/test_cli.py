@@ -574,3 +574,45 @@ def test_layout_on_named_columns_said(capsys, stream, tmp_path):
     got = read_csv(tmp_path / "o.csv")
     assert same_rotation(np.column_stack([got[c] for c in ("qw", "qx", "qy", "qz")]),
                          q / np.linalg.norm(q, axis=1)[:, None])
+
+
+def test_resample_in_times(capsys, tmp_path, rng):
+    t, pos, q = smooth_stream(rng, 40)
+    q = q / np.linalg.norm(q, axis=1)[:, None]
+    np.save(tmp_path / "q.npy", q)
+    (tmp_path / "times.txt").write_text("".join(f"{float(v)!r}\n" for v in t))  # uneven steps, as KITTI's
+    write_csv(tmp_path / "ref.csv", t, None, q)
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", tmp_path / "o.csv", "--rate", "20",
+                     "--in-times", tmp_path / "times.txt")
+    assert rc == 0 and err == ""
+    rc, _, _ = cli(capsys, "resample", tmp_path / "ref.csv", tmp_path / "ref_o.csv", "--rate", "20")
+    got, want = read_csv(tmp_path / "o.csv"), read_csv(tmp_path / "ref_o.csv")
+    assert rc == 0 and sorted(got) == sorted(want)
+    for c in want:
+        np.testing.assert_array_equal(got[c], want[c])
+
+
+def test_resample_in_times_bad(capsys, tmp_path, rng):
+    np.save(tmp_path / "q.npy", unit(rng, 4))
+    tt = tmp_path / "times.txt"
+    out = tmp_path / "o.csv"
+    tt.write_text("0\n0.1\n0.2\n")
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", out, "--rate", "20", "--in-times", tt)
+    assert rc == 1 and err == f"{tt} has 3 times but {tmp_path / 'q.npy'} has 4 rows; they must match\n"
+    tt.write_text("0\n0.1\n0.2\n0.3\n0.4\n")
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", out, "--rate", "20", "--in-times", tt, "--chunk", "2")
+    assert rc == 1 and err == f"{tt} has 5 times but {tmp_path / 'q.npy'} has 4 rows; they must match\n"
+    tt.write_text("# times\n0\n0.1\n0.1\n0.3\n")
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", out, "--rate", "20", "--in-times", tt)
+    assert rc == 1 and err == f"{tt}:4: repeated time 0.1 (previous 0.1); times must increase\n"
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", out, "--rate", "20", "--in-times", tt,
+                     "--in-rate", "10")
+    assert rc == 2 and "not allowed with argument" in err
+    assert not out.exists()
+
+
+def test_resample_in_rate_on_timed_stream_said(capsys, stream, tmp_path):
+    path, t, pos, q = stream
+    rc, _, err = cli(capsys, "resample", path, tmp_path / "o.csv", "--rate", "20", "--in-rate", "100")
+    assert rc == 0 and f"{path}: has a time column; --in-rate ignored" in err.splitlines()
+    np.testing.assert_allclose(read_csv(tmp_path / "o.csv")["t"][:2], [t[0], t[0] + 0.05])

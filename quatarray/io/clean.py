@@ -116,8 +116,7 @@ class Cleaner:
             bad = ~(t > prev)
             if bad.any():
                 i = int(np.argmax(bad))
-                what = "repeated" if t[i] == prev[i] else "decreasing"
-                self._fail(ch.row0 + i, f"{what} time {float(t[i])!r} (previous {float(prev[i])!r}); times must increase")
+                self._fail(ch.row0 + i, time_order(t[i], prev[i]))
             self.last_t = float(t[-1])
             return good
         # drop: a row is kept when its time is after the last kept time; the
@@ -155,6 +154,13 @@ class Cleaner:
         if projected:
             print(fixed_note(name, "projected", projected, "non-orthonormal rotation matrix", "|R^T R - I|",
                              self.reader.max_projection, plural="non-orthonormal rotation matrices"), file=err)
+
+
+def time_order(t, prev, strict=True):
+    """What is wrong with time `t` after `prev`: ``repeated time 2.0 (previous 2.0);
+    times must increase`` (``must not decrease`` when not `strict`)."""
+    what = "repeated" if t == prev else "decreasing"
+    return f"{what} time {float(t)!r} (previous {float(prev)!r}); times must {'increase' if strict else 'not decrease'}"
 
 
 def fixed_note(name, verb, count, noun, measure, largest, plural=None):

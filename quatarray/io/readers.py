@@ -30,7 +30,7 @@ import weakref
 import numpy as np
 
 from . import formats as F
-from .clean import ROUNDING, TEXT_ROUNDING
+from .clean import ROUNDING, TEXT_ROUNDING, time_order
 from .errors import DataError, UsageError
 from .formats import is_zarr
 from .streams import Chunk
@@ -975,11 +975,21 @@ def _parse_num(s, typ, name, lineno, what):
 # times for `resample --times`
 
 
-def read_times(path, fmt="auto", name=None):
+def read_times(path, fmt="auto", name=None, order=None):
     r"""A 1-D float64 array of times from a file.
 
     ``.npy``: a 1-D array (or (N, 1)). Text: one number a line, or any stream
     file with a time column (csv/tum/euroc/parquet/bvh), whose times are used.
+
+    Parameters
+    ----------
+    path : str or path-like
+    fmt : {"auto", "npy", "csv", ...}
+    name : str, optional
+        The file's name in messages (default `path`).
+    order : {None, "non-decreasing", "increasing"}
+        Check that the times are finite and in this order: the first that is
+        not raises a :class:`DataError` naming its line (its row in an npy file).
 
     Examples
     --------
@@ -992,25 +1002,41 @@ def read_times(path, fmt="auto", name=None):
     """
     path = os.fspath(path)
     name = name or path
+    times, where = _times_and_where(path, fmt, name)
+    if order is not None:
+        fin = np.isfinite(times)
+        if not fin.all():
+            i = int(np.argmin(fin))
+            raise DataError(f"{where(i)}: time is not a finite number ({float(times[i])!r})")
+        d = np.diff(times)
+        bad = (d <= 0) if order == "increasing" else (d < 0)
+        if bad.any():
+            i = int(np.argmax(bad)) + 1
+            raise DataError(f"{where(i)}: {time_order(times[i], times[i - 1], order == 'increasing')}")
+    return times
+
+
+def _times_and_where(path, fmt, name):
+    """The times of a file and ``where(i)``, the ``file:line`` (or row) of time i."""
     if not os.path.exists(path):
         raise UsageError(f"{name}: no such file")
     if (fmt == "auto" and F.by_extension(path) == "npy") or fmt == "npy":
         try:
             a = np.load(path, mmap_mode="r")
         except (ValueError, OSError, EOFError) as exc:
-            raise DataError(f"{name}: not a valid .npy file ({exc})") from None
+            raise DataError(f"{name}: not a valid .npy file ({F.shown(exc)})") from None
         if a.ndim == 2 and a.shape[1] == 1:
             a = a[:, 0]
         if a.ndim != 1:
             raise DataError(f"{name}: expected a 1-D array of times, got shape {a.shape}")
-        return a
+        return a, lambda i: f"{name}: row {i}"
     if F.by_extension(path) is None and fmt in ("auto", "csv"):
         with open(path, "rb") as f:
             first = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith(b"#")), b"")
         fields = first.replace(b",", b" ").split()
         if len(fields) == 1:
-            out = []
-            with open(path, "r", encoding="utf-8", errors="replace") as f:
+            out, lines = [], []
+            with open(path, "r", encoding="utf-8-sig", errors="backslashreplace") as f:
                 for lineno, line in enumerate(f, 1):
                     s = line.strip()
                     if not s or s.startswith("#") or (not out and not _is_number(s)):
@@ -1018,11 +1044,12 @@ def read_times(path, fmt="auto", name=None):
                     try:
                         out.append(float(s))
                     except ValueError:
-                        raise DataError(f"{name}:{lineno}: not a number: {s!r}") from None
+                        raise DataError(f"{name}:{lineno}: not a number: '{F.shown(s)}'") from None
+                    lines.append(lineno)
             if not out:
                 raise F.empty(name)
-            return np.array(out)
+            return np.array(out), lambda i: f"{name}:{lines[i]}"
     reader = open_stream(path, fmt, name=name)
     if not reader.has_time:
         raise DataError(f"{name}: has no time column")
-    return np.concatenate([ch.t for ch in reader])
+    return np.concatenate([ch.t for ch in reader]), reader.where
