@@ -731,3 +731,20 @@ def test_huge_and_tiny_quaternions_read_correctly(tmp_path, rng, scale):
     p = write(tmp_path / "z.csv", "qw,qx,qy,qz\n0,0,0,0\n")
     with pytest.raises(DataError, match=r"z\.csv:2: zero quaternion"):
         read_all(io.open_stream(p, name="z.csv"))
+
+
+@pytest.mark.parametrize(
+    "raw, msg",
+    [
+        (b"t,qw,qx,qy,qz\n0,1,0,0,0\n1,\x1b[31m\x00x,0,0,0\n", r"^b\.csv:3: not a number: '\\x1b\[31m\\x00x' in column qw$"),
+        (b"1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 \x07" + b"z" * 200 + b"\n",
+         r"^b\.csv:2: not a number: '\\x07z{55}…' in column qw$"),
+        (b"\x00\x01\x02\xff,\x1b[2J" + b"y" * 100 + b"\n1,2\n", r"the header has \\x00\\x01\\x02\\xff, \\x1b\[2Jy+…\)$"),
+    ],
+    ids=["control", "long", "header"],
+)
+def test_binary_bytes_escaped_in_messages(tmp_path, raw, msg):
+    (tmp_path / "b.csv").write_bytes(raw)
+    with pytest.raises(DataError, match=msg) as info:
+        read_all(io.open_stream(tmp_path / "b.csv", name="b.csv"))
+    assert str(info.value).isprintable() and len(str(info.value)) < 160

@@ -192,7 +192,7 @@ class NpyReader(Reader):
         except (ValueError, OSError, EOFError) as exc:
             if os.path.getsize(path) == 0:
                 raise F.empty(name) from None
-            raise DataError(f"{name}: not a valid .npy file ({exc})") from None
+            raise DataError(f"{name}: not a valid .npy file ({F.shown(exc, 100)})") from None
         self.dtype, self.shape, self.fortran = dtype, shape, fortran
         self.core, self.columns, self.layout = array_layout(name, kind, self.layout, shape, dtype)
         self.rows = shape[0]
@@ -238,7 +238,7 @@ class ZarrReader(NpyReader):
         try:
             arr = zarr.open_array(path, mode="r")
         except Exception as exc:  # zarr raises several kinds for a folder that is no array
-            raise DataError(f"{name}: not a zarr array ({type(exc).__name__}: {exc})") from None
+            raise DataError(f"{name}: not a zarr array ({type(exc).__name__}: {F.shown(exc, 100)})") from None
         self.path, self.name, self.kind, self.chunk = path, name, kind, chunk
         self.bad_ok = on_invalid == "drop"
         self.dtype, self.shape, self.fortran = np.dtype(arr.dtype), tuple(arr.shape), False
@@ -326,7 +326,7 @@ def _find_roles(names, kind, name, lineno):
             missing = [k for k in F.QUAT_NAMES[0] if k not in low]
             raise DataError(
                 f"{name}:{lineno}: missing column {', '.join(missing)} "
-                f"(need qw, qx, qy, qz; the header has {', '.join(n.strip() for n in names)})"
+                f"(need qw, qx, qy, qz; the header has {F.shown(', '.join(n.strip() for n in names))})"
             )
         return t, pos, q
     v = next(([low[k] for k in c] for c in F.VEC_NAMES if all(k in low for k in c)), None)
@@ -604,7 +604,7 @@ class TextReader(Reader):
             _released(handler)
         if failed is not None:
             if self.drop:
-                raise DataError(f"{self.name}: {failed}")
+                raise DataError(f"{self.name}: {F.shown(failed, 100)}")
             self._scan_for_error(failed)
         if row0 == 0 and not self.skipped:
             raise F.empty(self.name)
@@ -655,8 +655,8 @@ class TextReader(Reader):
                 ok = _int_or_none(s) is not None if (self.ns_time and c == self.t) else _is_number(s)
                 if not ok:
                     kind = "an integer" if self.ns_time and c == self.t else "a number"
-                    raise DataError(f"{self.name}:{lineno}: not {kind}: {s!r} in column {c}")
-        raise DataError(f"{self.name}: {exc}")
+                    raise DataError(f"{self.name}:{lineno}: not {kind}: '{F.shown(s)}' in column {c}")
+        raise DataError(f"{self.name}: {F.shown(exc, 100)}")
 
 
 class _Squeezed:
@@ -777,7 +777,7 @@ class ParquetReader(Reader):
         except Exception as exc:  # pyarrow raises several types for a bad file
             if os.path.getsize(path) == 0:
                 raise F.empty(name) from None
-            raise DataError(f"{name}: not a readable parquet file ({str(exc).splitlines()[0]})") from None
+            raise DataError(f"{name}: not a readable parquet file ({F.shown(str(exc).splitlines()[0], 100)})") from None
         names = self.file.schema_arrow.names
         self.t, self.pos, self.q = _find_roles(names, kind, name, "header")
         self.columns = [c for c in [self.t] + (self.pos or []) + self.q if c]
@@ -798,7 +798,7 @@ class ParquetReader(Reader):
                 pos = np.column_stack([get(c) for c in self.pos]).astype(np.float64) if self.pos else None
                 data = np.column_stack([get(c) for c in self.q]).astype(np.float64)
             except (TypeError, ValueError) as exc:
-                raise DataError(f"{self.name}: a column is not numeric ({exc})") from None
+                raise DataError(f"{self.name}: a column is not numeric ({F.shown(exc, 100)})") from None
             yield Chunk(data, t, pos, row0)
             row0 += batch.num_rows
 
@@ -921,7 +921,7 @@ class BvhReader(Reader):
                         self.skipped += 1
                         continue
                     bad = next(s for s in tok if not _is_number(s))
-                    raise DataError(f"{name}:{lineno}: not a number: {bad!r}") from None
+                    raise DataError(f"{name}:{lineno}: not a number: '{F.shown(bad)}'") from None
                 frame_idx.append(k)
         held = self.skipped + len(rows)
         if self.frames is not None and held != self.frames:
@@ -968,7 +968,7 @@ def _parse_num(s, typ, name, lineno, what):
     try:
         return typ(s.strip())
     except ValueError:
-        raise DataError(f"{name}:{lineno}: bad {what} {s.strip()!r}") from None
+        raise DataError(f"{name}:{lineno}: bad {what} '{F.shown(s.strip())}'") from None
 
 
 # --------------------------------------------------------------------------
@@ -1024,7 +1024,7 @@ def _times_and_where(path, fmt, name):
         try:
             a = np.load(path, mmap_mode="r")
         except (ValueError, OSError, EOFError) as exc:
-            raise DataError(f"{name}: not a valid .npy file ({F.shown(exc)})") from None
+            raise DataError(f"{name}: not a valid .npy file ({F.shown(exc, 100)})") from None
         if a.ndim == 2 and a.shape[1] == 1:
             a = a[:, 0]
         if a.ndim != 1:
