@@ -185,7 +185,8 @@ class _RateTimes:
 
 
 class _FileTimes:
-    """New times from a file: non-decreasing, inside the key times."""
+    """Times from a file: ``--times`` (new times, non-decreasing, inside the key times)
+    or ``--in-times`` (the key times of a stream without a time column, increasing)."""
 
     def __init__(self, path, fmt, order="non-decreasing"):
         self.name = path

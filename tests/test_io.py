@@ -1,6 +1,7 @@
 """Tests for quatarray.io: readers, writers and the row checks."""
 
 import os
+from io import StringIO
 
 import numpy as np
 import pytest
@@ -516,7 +517,7 @@ def tum_want(rows):
         tum_text(TUM_ROWS, trail="  "),
         tum_text(TUM_ROWS, trail="\t"),
         tum_text(TUM_ROWS, sep=" \t "),
-        tum_text(TUM_ROWS, trail=" \r").replace("\n", "\n"),
+        tum_text(TUM_ROWS, trail=" \r"),
         "# aligned\n" + "".join(" ".join(f"{v!r:>20}" for v in r) + "\n" for r in TUM_ROWS),
         "  # indented comment\n\n" + tum_text(TUM_ROWS[:1]) + "   \n" + tum_text(TUM_ROWS[1:], lead="\t"),
     ],
@@ -557,6 +558,7 @@ def test_kitti_aligned_columns(tmp_path, rng):
 
 
 BOM = "\ufeff"
+F_TUM = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
 
 
 def test_byte_order_mark(tmp_path, rng):
@@ -587,9 +589,6 @@ def test_hash_header_without_space_is_tum(tmp_path, sep):
     t, pos, q = tum_want(TUM_ROWS)
     np.testing.assert_array_equal(got.pos, pos)
     np.testing.assert_allclose(got.data, q, atol=1e-15)
-
-
-F_TUM = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
 
 
 def test_comment_header_names_columns(tmp_path):
@@ -628,7 +627,7 @@ def test_headerless_layout_is_said(tmp_path):
     ]
     r = io.open_stream(tmp_path / "s.txt", layout="wxyz")  # the same numbers, scalar first
     np.testing.assert_allclose(read_all(r)[0].data, np.array(TUM_ROWS)[:, 4:], atol=1e-15)
-    err = __import__("io").StringIO()
+    err = StringIO()
     c = Cleaner(io.open_stream(p, name="c.csv"))
     c.report(err)
     assert err.getvalue().startswith("c.csv: no column names")
@@ -652,7 +651,7 @@ def test_bvh_frame_count_checked(tmp_path, says, cut):
         read_all(io.open_stream(p, name="m.bvh"))
     got, clean = read_all(io.open_stream(p, name="m.bvh", on_invalid="drop"), "drop")
     assert len(got) == held
-    err = __import__("io").StringIO()
+    err = StringIO()
     clean.report(err)
     assert err.getvalue() == f"m.bvh:17: 'Frames:' says {says} frames, the file holds {held}; read those {held}\n"
 
@@ -668,7 +667,7 @@ def test_bvh_huge_angles_refused(tmp_path):
 
 def report_of(reader, **kw):
     got, clean = read_all(reader, **kw)
-    err = __import__("io").StringIO()
+    err = StringIO()
     clean.report(err)
     return got, err.getvalue()
 
@@ -736,10 +735,12 @@ def test_huge_and_tiny_quaternions_read_correctly(tmp_path, rng, scale):
 @pytest.mark.parametrize(
     "raw, msg",
     [
-        (b"t,qw,qx,qy,qz\n0,1,0,0,0\n1,\x1b[31m\x00x,0,0,0\n", r"^b\.csv:3: not a number: '\\x1b\[31m\\x00x' in column qw$"),
+        (b"t,qw,qx,qy,qz\n0,1,0,0,0\n1,\x1b[31m\x00x,0,0,0\n",
+         r"^b\.csv:3: not a number: '\\x1b\[31m\\x00x' in column qw$"),
         (b"1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 \x07" + b"z" * 200 + b"\n",
          r"^b\.csv:2: not a number: '\\x07z{55}…' in column qw$"),
-        (b"\x00\x01\x02\xff,\x1b[2J" + b"y" * 100 + b"\n1,2\n", r"the header has \\x00\\x01\\x02\\xff, \\x1b\[2Jy+…\)$"),
+        (b"\x00\x01\x02\xff,\x1b[2J" + b"y" * 100 + b"\n1,2\n",
+         r"the header has \\x00\\x01\\x02\\xff, \\x1b\[2Jy+…\)$"),
     ],
     ids=["control", "long", "header"],
 )

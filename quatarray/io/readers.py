@@ -373,11 +373,9 @@ class TextReader(Reader):
             raise F.empty(name)
         line = head[i]
         self.skip = i  # lines before the first data (or header) line
-        delim = "," if "," in line else ("\t" if "\t" in line else " ")
         # any run of spaces and tabs separates the columns of whitespace-separated text
-        self.squeeze = delim != ","
-        delim = " " if self.squeeze else delim
-        self.delim = delim
+        self.squeeze = "," not in line
+        self.delim = delim = " " if self.squeeze else ","
         fields = _split(line, delim)
         numeric = all(_is_number(x) for x in fields)
         # a `# timestamp tx ty tz qx qy qz qw` comment just above the numbers names them
@@ -562,7 +560,8 @@ class TextReader(Reader):
             types[self.t] = pa.int64()
         width = max(16, 12 * len(self.names))
         ro = pcsv.ReadOptions(
-            skip_rows=int(self.header_line) if self.squeeze else self.skip, column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26)),
+            skip_rows=int(self.header_line) if self.squeeze else self.skip,  # _Squeezed drops comments
+            column_names=self.names, block_size=int(min(max(self.chunk * width, 1 << 16), 1 << 26)),
         )
 
         def skip(row):
