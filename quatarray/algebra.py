@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import kernel, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, float_dtype, scan
+from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan
 
 Q = (4,)
 
@@ -307,8 +307,7 @@ def identity(shape=(), dtype=np.float64):
            [1., 0., 0., 0.]], dtype=float32)
     """
     dtype = float_dtype(dtype)
-    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-    out = np.zeros(shape + Q, dtype)
+    out = np.zeros(leading_shape(shape, "shape") + Q, dtype)
     out[..., 0] = 1
     return out
 
@@ -334,7 +333,7 @@ def random(n=None, rng=None, dtype=np.float64):
     """
     dtype = float_dtype(dtype)
     gen = np.random.default_rng(rng)
-    shape = () if n is None else ((n,) if isinstance(n, (int, np.integer)) else tuple(n))
+    shape = () if n is None else leading_shape(n, "n")
     q = gen.standard_normal(shape + Q)
     nrm = np.linalg.norm(q, axis=-1, keepdims=True)
     while np.any(nrm < 1e-6):  # probability ~0; redraw rather than divide by ~0

@@ -23,7 +23,7 @@ from . import _elements as E
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
 from ._trig import half_arc, sincos
-from ._validate import as_float, check_core, elementwise, is_weak, shape_error, where
+from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
 
 Q = (4,)
 V = (3,)
@@ -722,11 +722,15 @@ def from_su2(m, out=None):
     >>> qa.from_su2([[1 + 2j, 3 + 4j], [-3 + 4j, 1 - 2j]])
     array([1., 2., 3., 4.])
     """
-    a = m if isinstance(m, np.ndarray) else np.asarray(m)
+    refuse_masked(m, "m")
+    try:
+        a = np.asarray(m)
+    except (ValueError, TypeError) as exc:
+        raise TypeError(f"Expected `m` to be an array of complex or real numbers: {exc}") from None
     kind = a.dtype.kind
-    if kind == "c":
-        ctype = np.complex64 if a.dtype == np.complex64 else np.complex128
-    elif kind == "f" and a.dtype in (np.float16, np.float32):
+    if kind == "c":  # complex64 in either byte order stays complex64
+        ctype = np.complex64 if a.dtype.itemsize <= 8 else np.complex128
+    elif kind == "f" and a.dtype.itemsize <= 4:
         ctype = np.complex64
     elif kind in "fbiu":
         ctype = np.complex128

@@ -330,3 +330,125 @@ def test_conjugate_reverses_products(p, q):
 def test_scans_of_empty_streams():
     assert qa.cumprod(np.empty((0, 4))).shape == (0, 4)
     assert qa.cumprod(np.empty((3, 0, 4)), axis=1).shape == (3, 0, 4)
+
+
+# ---------------------------------------------------------------- hardening (issue 14)
+
+
+class _Sub(np.ndarray):
+    """An ndarray subclass whose reshape(-1) stays 2-D, like np.matrix."""
+
+    def reshape(self, *shape, **kw):
+        return np.asarray(self).reshape(1, -1).view(type(self))
+
+
+def out_cases(rng):
+    """(name, call with out=, result shape) for the element-wise functions with ``out=``
+    outside quatarray.interpolation."""
+    q, p = qa.random(1000, rng), qa.random(1000, rng)
+    v = rng.normal(size=(1000, 3))
+    m = qa.as_matrix(q)
+    u = qa.as_su2(q)
+    T = qa.VQS(v, q, rng.uniform(1, 2, 1000))
+    return [
+        ("multiply", lambda out: qa.multiply(p, q, out=out), (1000, 4)),
+        ("conjugate", lambda out: qa.conjugate(q, out=out), (1000, 4)),
+        ("inverse", lambda out: qa.inverse(q, out=out), (1000, 4)),
+        ("normalize", lambda out: qa.normalize(q, out=out), (1000, 4)),
+        ("exp", lambda out: qa.exp(q, out=out), (1000, 4)),
+        ("log", lambda out: qa.log(q, out=out), (1000, 4)),
+        ("power", lambda out: qa.power(q, 0.3, out=out), (1000, 4)),
+        ("canonical", lambda out: qa.canonical(q, out=out), (1000, 4)),
+        ("rotate", lambda out: qa.rotate(q, v, out=out), (1000, 3)),
+        ("as_matrix", lambda out: qa.as_matrix(q, out=out), (1000, 3, 3)),
+        ("from_matrix", lambda out: qa.from_matrix(m, out=out), (1000, 4)),
+        ("from_matrix_valid", lambda out: qa.from_matrix(m, assume_valid=True, out=out), (1000, 4)),
+        ("as_rotvec", lambda out: qa.as_rotvec(q, out=out), (1000, 3)),
+        ("from_rotvec", lambda out: qa.from_rotvec(v, out=out), (1000, 4)),
+        ("from_axis_angle", lambda out: qa.from_axis_angle(v, v[:, 0], out=out), (1000, 4)),
+        ("as_xyzw", lambda out: qa.as_xyzw(q, out=out), (1000, 4)),
+        ("from_xyzw", lambda out: qa.from_xyzw(q, out=out), (1000, 4)),
+        ("as_left_matrix", lambda out: qa.as_left_matrix(q, out=out), (1000, 4, 4)),
+        ("as_right_matrix", lambda out: qa.as_right_matrix(q, out=out), (1000, 4, 4)),
+        ("from_su2", lambda out: qa.from_su2(u, out=out), (1000, 4)),
+        ("VQS.apply", lambda out: T.apply(v, out=out), (1000, 3)),
+    ]
+
+
+@pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
+@pytest.mark.parametrize("kind", ["matrix", "subclass"])
+def test_out_subclasses_filled_in_bounds(rng, kind):
+    # issue 14.1: np.matrix (2-D only) and subclasses whose reshape stays 2-D
+    for name, call, shape in out_cases(rng):
+        want = call(None)
+        if kind == "matrix":
+            if len(shape) != 2:
+                continue
+            out = np.matrix(np.zeros(shape))
+        else:
+            out = np.zeros(shape).view(_Sub)
+        assert call(out) is out, name
+        assert np.array_equal(np.asarray(out), want), name
+
+
+def test_masked_arrays_refused(rng):
+    # issue 14.11: a mask would be ignored by the kernels, so masked input is refused
+    q = np.ma.masked_array(qa.random(5, rng), mask=False)
+    for f in (qa.normalize, qa.norm, qa.as_matrix, qa.mean, lambda a: qa.as_euler(a, "xyz"), qa.cumprod):
+        with pytest.raises(TypeError, match="`q`.*masked"):
+            f(q)
+    with pytest.raises(TypeError, match="`p`.*masked"):
+        qa.multiply(q, q.data)
+    with pytest.raises(ValueError, match="`out`"):
+        qa.conjugate(q.data, out=np.ma.masked_array(np.zeros((5, 4))))
+
+
+@pytest.mark.parametrize("order", [">", "<"])
+def test_any_byte_order_keeps_float32(rng, order):
+    # issue 14.11: '>f4' (and '<f4') in → native float32 out; float16 → float32
+    q = qa.random(7, rng)
+    for dt, want in ((order + "f4", np.float32), (order + "f8", np.float64), ("f2", np.float32)):
+        a = q.astype(dt)
+        for f in (qa.normalize, qa.norm, qa.as_matrix, qa.as_rotvec, qa.mean, qa.cumprod, qa.angle):
+            r = f(a)
+            assert r.dtype == want and r.dtype.isnative, (f, dt)
+        assert qa.multiply(a, a).dtype == want and qa.power(a, 0.5).dtype == want
+        assert qa.rotate(a, np.ones(3, dt)).dtype == want
+        assert qa.as_euler(a, "xyz").dtype == want
+        assert np.allclose(qa.normalize(a), qa.normalize(q), atol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "call, name",
+    [
+        (lambda: qa.identity(2.5), "shape"),
+        (lambda: qa.identity((2, 2.5)), "shape"),
+        (lambda: qa.identity(True), "shape"),
+        (lambda: qa.identity("3"), "shape"),
+        (lambda: qa.random(2.5), "n"),
+        (lambda: qa.random(True), "n"),
+        (lambda: qa.random((2, None)), "n"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=1.0), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis="0"), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=None), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=True), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis=1.0), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis="0"), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis=None), "axis"),
+    ],
+)
+def test_bad_integer_arguments_named(call, name):
+    # issue 14.10
+    with pytest.raises(TypeError, match=f"Expected `{name}` to be"):
+        call()
+
+
+def test_negative_and_array_sizes():
+    # issue 14.10: negative sizes refused by name; a 0-d integer array is a size, as in numpy
+    for call, name in ((lambda: qa.random(-1), "n"), (lambda: qa.identity((2, -1)), "shape")):
+        with pytest.raises(ValueError, match=f"Expected `{name}` to be a non-negative"):
+            call()
+    assert qa.random(np.array(3), rng=0).shape == (3, 4)
+    assert qa.identity(np.int8(2)).shape == (2, 4)
+    assert qa.identity(np.array([2, 3])).shape == (2, 3, 4)
+    assert qa.cumprod(np.ones((2, 3, 4)), axis=np.array(1)).shape == (2, 3, 4)

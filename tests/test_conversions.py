@@ -423,3 +423,31 @@ def test_parallel_variants_report_the_first_bad_row(rng):
     ang = rng.standard_normal(3000)
     assert C._from_axis_angle.parallel(axis, ang, out_p) == 1234 == C._from_axis_angle.serial(axis, ang, out_s)
     assert np.array_equal(out_p, out_s, equal_nan=True)
+
+
+# ---------------------------------------------------------------- hardening (issue 14)
+
+
+def test_from_su2_byte_order_ragged_and_masked(rng):
+    # issue 14.10 / 14.11
+    q = qa.random(5, rng)
+    u = qa.as_su2(q)
+    for dt, want in ((">c8", np.float32), ("<c8", np.float32), (">c16", np.float64), (">f4", np.float32)):
+        m = u.astype(dt) if dt[1] == "c" else u.real.astype(dt)
+        r = qa.from_su2(m)
+        assert r.dtype == want and r.dtype.isnative, dt
+    assert np.allclose(qa.from_su2(u.astype(">c8")), q, atol=1e-6)
+    with pytest.raises(TypeError, match="Expected `m` to be an array"):
+        qa.from_su2([[[1, 0], [0, 1]], [[1, 0]]])
+    with pytest.raises(TypeError, match="`m`.*masked"):
+        qa.from_su2(np.ma.masked_array(u))
+
+
+def test_big_endian_float32_conversions(rng):
+    # issue 14.11: '>f4' in any function gives native float32
+    q = qa.random(5, rng).astype(">f4")
+    for r in (qa.as_matrix(q), qa.from_matrix(qa.as_matrix(q).astype(">f4")), qa.as_rotvec(q),
+              qa.from_rotvec(np.ones((5, 3), ">f4")), qa.as_axis_angle(q)[0], qa.as_left_matrix(q),
+              qa.from_axis_angle(np.ones((5, 3), ">f4"), np.ones(5, ">f4")), qa.as_xyzw(q)):
+        assert r.dtype == np.float32 and r.dtype.isnative
+    assert qa.as_su2(q).dtype == np.complex64
