@@ -452,3 +452,29 @@ def test_negative_and_array_sizes():
     assert qa.identity(np.int8(2)).shape == (2, 4)
     assert qa.identity(np.array([2, 3])).shape == (2, 3, 4)
     assert qa.cumprod(np.ones((2, 3, 4)), axis=np.array(1)).shape == (2, 3, 4)
+
+
+def test_mean_zero_weights_and_bad_rows(rng):
+    # issue 14.9: all-zero weights gave a 180° turn (scipy: the identity); a zero,
+    # nan or inf row or weight raised LinAlgError
+    q = qa.random(6, rng)
+    want = R(q).mean(weights=np.zeros(6)).as_quat(scalar_first=True)
+    assert np.array_equal(qa.mean(q, np.zeros(6)), want) and np.array_equal(want, [1, 0, 0, 0])
+    assert qa.mean(q.astype(np.float32), np.zeros(6)).dtype == np.float32
+    for bad in (0.0, np.nan, np.inf):
+        b = q.copy()
+        b[3] = bad
+        with pytest.raises(ValueError, match=r"Expected `q` to be finite and non-zero; row 3"):
+            qa.mean(b)
+        with pytest.raises(ValueError, match=r"`q`.*index \(1, 0\)"):
+            qa.mean(b.reshape(2, 3, 4))
+    for bad in (np.nan, np.inf):
+        w = np.ones(6)
+        w[2] = bad
+        with pytest.raises(ValueError, match=r"Expected `weights` to be finite; row 2"):
+            qa.mean(q, w)
+    with pytest.raises(ValueError, match=r"Expected `weights` to be non-negative; row 4"):
+        qa.mean(q, [1, 1, 1, 1, -1, 1])
+    # any scale (issue 14.5)
+    for scale in (1e-160, 1e160, 1e300):
+        assert np.allclose(qa.distance(qa.mean(q * scale), qa.mean(q)), 0, atol=1e-14)
