@@ -69,7 +69,11 @@ def _log(q, out):
 @rowloop
 def _power(q, t, out):
     for i in prange(q.shape[0]):
-        E.store4(out, i, E.qexp(E.qscale(E.qlog(E.load4(q, i)), t[i])))
+        ti = t[i]
+        if ti == like(ti, 0.0):  # q⁰ = 1 for every q, as numpy's 0.0**0 and nan**0
+            E.store4(out, i, (like(ti, 1.0), like(ti, 0.0), like(ti, 0.0), like(ti, 0.0)))
+        else:
+            E.store4(out, i, E.qexp(E.qscale(E.qlog(E.load4(q, i)), ti)))
 
 
 @rowloop
@@ -82,13 +86,15 @@ def _canonical(q, out):
 @rowloop
 def _angle(q, out):
     for i in prange(q.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.load4(q, i))
+        out[i] = like(out, 2.0) * E.half_angle(E.qscaled(E.load4(q, i))[0])
 
 
 @rowloop
 def _distance(p, q, out):
     for i in prange(p.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i)))
+        a = E.qscaled(E.load4(p, i))[0]
+        b = E.qscaled(E.load4(q, i))[0]
+        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(a), b))
 
 
 @kernel

@@ -52,6 +52,14 @@ def sumsq9(a):
 
 
 @element
+def max9abs(a):
+    m = abs(a[0])
+    for k in range(1, 9):
+        m = max(m, abs(a[k]))
+    return m
+
+
+@element
 def near_orthogonal(a):
     """scipy's test ``np.isclose(a aᵀ, I, atol=1e-12)`` (default rtol 1e-5)."""
     atol = like(a[0], 1e-12)
@@ -137,7 +145,8 @@ def shepperd(a):
 @inline
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
-    θ = 2 atan2(|u|, |w|) in [0, π]."""
+    θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
+    q = E.qscaled(q)[0]
     w, x, y, z = q
     un = E.vnorm((x, y, z))
     aw = abs(w)
@@ -150,7 +159,9 @@ def qrotvec(q):
 
 @inline
 def qaxis_angle(q):
-    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan."""
+    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
+    any scale of q (:func:`_elements.qscaled`)."""
+    q = E.qscaled(q)[0]
     w, x, y, z = q
     zero = like(w, 0.0)
     un = E.vnorm((x, y, z))
@@ -224,7 +235,12 @@ def _from_matrix(m, out):
     bad = n
     for i in prange(n):
         a = load33(m, i)
-        d = det33(a)
+        # the determinant's sign and the projection on a scaled by its largest
+        # entry (no overflow or underflow in the products, whatever its scale)
+        c = max9abs(a)
+        c = c if (c > like(c, 0.0)) & (c < like(c, np.inf)) else like(c, 1.0)
+        s = (a[0] / c, a[1] / c, a[2] / c, a[3] / c, a[4] / c, a[5] / c, a[6] / c, a[7] / c, a[8] / c)
+        d = det33(s)
         nan = like(d, np.nan)
         if d <= like(d, 0.0):
             bad = min(bad, i)
@@ -234,7 +250,7 @@ def _from_matrix(m, out):
         elif near_orthogonal(a):
             q = shepperd(a)
         else:
-            q = shepperd(polar33(a, eps))
+            q = shepperd(polar33(s, eps))
         E.store4(out, i, q)
     return bad if bad < n else -1
 

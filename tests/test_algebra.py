@@ -478,3 +478,44 @@ def test_mean_zero_weights_and_bad_rows(rng):
     # any scale (issue 14.5)
     for scale in (1e-160, 1e160, 1e300):
         assert np.allclose(qa.distance(qa.mean(q * scale), qa.mean(q)), 0, atol=1e-14)
+
+
+SCALES = {np.float64: (1e-300, 1e-160, 1e160, 1e300), np.float32: (1e-37, 1e-30, 1e30, 1e37)}
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_any_scale_algebra(rng, dtype):
+    # issue 14.5: 1e160·q gave a zero norm-free identity angle, normalize zeros, 1e-160·q nan
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    q0 = np.concatenate([qa.random(20, rng), [[np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]]]).astype(dtype)
+    p0 = qa.random(21, rng).astype(dtype)
+    for s in SCALES[dtype]:
+        s = dtype(s)
+        q = q0 * s
+        assert np.allclose(qa.norm(q) / s, 1, rtol=tol, atol=0)
+        assert np.allclose(qa.normalize(q), q0, atol=tol)
+        assert np.allclose(qa.inverse(q) * s, qa.conjugate(q0), atol=tol)
+        assert np.allclose(qa.angle(q), qa.angle(q0), atol=tol)
+        assert np.allclose(qa.distance(q, p0 * s), qa.distance(q0, p0), atol=tol)
+        assert np.allclose(qa.distance(q, q0), 0, atol=tol)
+        lq, l0 = qa.log(q), qa.log(q0)
+        assert np.allclose(lq[:, 1:], l0[:, 1:], atol=tol)
+        assert np.allclose(lq[:, 0], np.log(np.float64(s)), rtol=tol)
+        assert np.allclose(qa.distance(qa.mean(q), qa.mean(q0)), 0, atol=tol)
+    # subnormal scales are out of range: nan, never a wrong finite answer
+    if dtype == np.float64:
+        tiny = q0 * 1e-315
+        for f in (qa.norm, qa.normalize, qa.angle, qa.log):
+            assert np.isnan(f(tiny)).all()
+
+
+def test_zero_quaternion_gives_nan():
+    # issue 14.7: distance(0, q), distance(q, 0) and angle(0) gave 0
+    z, q = np.zeros(4), qa.from_rotvec([0.1, 0.2, 0.3])
+    assert np.isnan(qa.angle(z)) and np.isnan(qa.distance(z, q)) and np.isnan(qa.distance(q, z))
+    assert np.isnan(qa.angle(np.zeros((3, 4), np.float32))).all()
+    assert qa.norm(z) == 0
+    # q⁰ = 1 for every q, as numpy's 0.0**0 (and nan**0)
+    for a in (z, np.full(4, np.nan), q):
+        assert np.array_equal(qa.power(a, 0), [1, 0, 0, 0])
+    assert np.array_equal(qa.power(np.zeros((2, 4), np.float32), [0, 0.5]), [[1, 0, 0, 0], [0, 0, 0, 0]])

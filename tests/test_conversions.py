@@ -451,3 +451,31 @@ def test_big_endian_float32_conversions(rng):
               qa.from_axis_angle(np.ones((5, 3), ">f4"), np.ones(5, ">f4")), qa.as_xyzw(q)):
         assert r.dtype == np.float32 and r.dtype.isnative
     assert qa.as_su2(q).dtype == np.complex64
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_any_scale_conversions(rng, dtype):
+    # issue 14.5: 1e160·q gave the identity matrix and a zero rotation vector,
+    # 1e-160·q nan, from_matrix(1e120·R) nan
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    scales = (1e-300, 1e-160, 1e160, 1e300) if dtype == np.float64 else (1e-37, 1e-30, 1e30, 1e37)
+    q0 = np.concatenate([qa.random(20, rng), [[np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]]]).astype(dtype)
+    v = rng.normal(size=(21, 3)).astype(dtype)
+    m0 = qa.as_matrix(q0)
+    for s in scales:
+        s = dtype(s)
+        q = q0 * s
+        assert np.allclose(qa.as_matrix(q), m0, atol=tol)
+        assert np.allclose(qa.rotate(q, v), qa.rotate(q0, v), atol=10 * tol)
+        assert np.allclose(qa.rotate(q[-1], v), qa.rotate(q0[-1], v), atol=10 * tol)
+        assert np.allclose(qa.as_rotvec(q), qa.as_rotvec(q0), atol=tol)
+        for a, b in zip(qa.as_axis_angle(q), qa.as_axis_angle(q0)):
+            assert np.allclose(a, b, atol=tol)
+        assert np.allclose(qa.as_euler(q, "ZYX", suppress_warnings=True), qa.as_euler(q0, "ZYX", suppress_warnings=True), atol=tol)
+        assert np.allclose(qa.as_euler(q, "zxz"), qa.as_euler(q0, "zxz"), atol=tol)
+        assert np.allclose(qa.distance(qa.from_matrix(m0 * s), q0), 0, atol=10 * tol)
+        T = qa.VQS(v, q, 2.0)
+        assert np.allclose(T.apply(v), qa.VQS(v, q0, 2.0).apply(v), atol=10 * tol)
+        assert np.allclose((T @ T.inverse()).apply(v), v, atol=100 * tol)
+    with pytest.raises(ValueError, match="determinant"):
+        qa.from_matrix(np.zeros((3, 3)))
