@@ -22,7 +22,7 @@ import numpy as np
 from . import _elements as E
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
-from ._trig import half_arc, sincos
+from ._trig import half_arc, sincos, sincos_limit
 from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
 
 Q = (4,)
@@ -269,8 +269,24 @@ def _as_rotvec(q, out):
 
 @rowloop
 def _from_rotvec(r, out):
+    # Returns how many rows have half angles beyond the fast sincos range (or inf):
+    # _from_rotvec_far redoes those with libm, as quatarray.euler does.
+    far = 0
     for i in prange(r.shape[0]):
-        E.store4(out, i, rotvec_quat(E.load3(r, i)))
+        v = E.load3(r, i)
+        E.store4(out, i, rotvec_quat(v))
+        far += abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0])
+    return far
+
+
+@rowloop(parallel=False)
+def _from_rotvec_far(r, out):
+    for i in range(r.shape[0]):
+        v = E.load3(r, i)
+        h = like(v[0], 0.5) * E.vnorm(v)
+        if abs(h) > sincos_limit(h):
+            k = half_sinc(h, np.sin(h))
+            E.store4(out, i, (np.cos(h), k * v[0], k * v[1], k * v[2]))
 
 
 @rowloop
@@ -283,7 +299,8 @@ def _as_axis_angle(q, axis, ang):
 
 @rowloop
 def _from_axis_angle(axis, ang, out):
-    # Returns the first row whose axis is zero (its output is nan), or -1.
+    # Returns the first row whose axis is zero (its output is nan), or -1. Half
+    # angles beyond the fast sincos range (or inf) take libm's sin and cos.
     n = axis.shape[0]
     bad = n
     for i in prange(n):
@@ -292,7 +309,10 @@ def _from_axis_angle(axis, ang, out):
         if un == like(un, 0.0):
             bad = min(bad, i)
         h = like(un, 0.5) * ang[i]
-        sn, c = sincos(h)
+        if abs(h) > sincos_limit(h):
+            sn, c = np.sin(h), np.cos(h)
+        else:
+            sn, c = sincos(h)
         k = sn / un
         if not np.isfinite(un):
             c = like(un, np.nan)  # a nan or inf axis gives nan, not (cos h, nan, …)
@@ -509,9 +529,10 @@ def from_rotvec(r, degrees=False, out=None):
     """Unit quaternions (cos(θ/2), sin(θ/2)·r/θ) of rotation vectors r, θ = |r|.
 
     Accurate for tiny vectors (a series replaces sin(θ/2)/θ near 0). Vectors
-    longer than π are accepted (w < 0 then), as in scipy; the branch-free
-    sine and cosine used here are exact to rounding for |r| below about
-    3·10⁶ rad and lose accuracy slowly beyond.
+    longer than π are accepted (w < 0 then), as in scipy; beyond the range of
+    the fast branch-free sine and cosine (|r| above 2·10⁶ rad, float32 65536
+    rad) the rows are redone with libm's, so the result is a unit quaternion
+    for any finite angle.
 
     Parameters
     ----------
@@ -533,7 +554,11 @@ def from_rotvec(r, degrees=False, out=None):
     >>> qa.from_rotvec([1e-12, 0, 0])
     array([1.e+00, 5.e-13, 0.e+00, 0.e+00])
     """
-    return elementwise(_from_rotvec, [(_radians(r, "r", degrees), "r", V)], [Q], out)
+    inputs = [(_radians(r, "r", degrees), "r", V)]
+    res, far = _with_status(_from_rotvec, inputs, [Q], out)
+    if far:  # rare: |r| beyond 2·10⁶ rad (float32: 65536 rad) or inf
+        elementwise(_from_rotvec_far, inputs, [Q], res)
+    return res
 
 
 def as_axis_angle(q, degrees=False):

@@ -238,7 +238,7 @@ def test_angle_and_distance(rng):
     a = np.concatenate([q, q * [1e-3, 1, 1, 1], q * [1, 1e-3, 1e-3, 1e-3]])
     ref = 2 * np.arctan2(np.linalg.norm(a[:, 1:], axis=1), np.abs(a[:, 0]))
     assert np.all(np.abs(qa.angle(a) - ref) <= 2 * np.spacing(ref))
-    assert qa.angle(np.zeros(4)) == 0 and qa.angle([-0.0, 0, 0, 0]) == 0  # atan2(0, 0)
+    assert np.isnan(qa.angle(np.zeros(4))) and np.isnan(qa.angle([-0.0, 0, 0, 0]))  # no rotation (issue 14.7)
     assert np.isnan(qa.angle([np.nan, 0, 0, 0])) and np.isnan(qa.angle([0, 0, np.nan, 0]))
 
 

@@ -479,3 +479,17 @@ def test_any_scale_conversions(rng, dtype):
         assert np.allclose((T @ T.inverse()).apply(v), v, atol=100 * tol)
     with pytest.raises(ValueError, match="determinant"):
         qa.from_matrix(np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_huge_angles_give_unit_quaternions(rng, dtype):
+    # issue 14.6: from_rotvec / from_axis_angle at 1e18 rad gave |q| ≈ 2e15
+    ang = np.array([1e18, -3e7, 7e5, 1e30 if dtype == np.float64 else 1e19, 4e6], dtype)
+    axis = qa.normalize(np.concatenate([rng.normal(size=(5, 3)), np.zeros((5, 1))], 1))[:, :3].astype(dtype)
+    for q in (qa.from_rotvec(axis * ang[:, None]), qa.from_axis_angle(axis, ang)):
+        assert q.dtype == dtype
+        assert np.allclose(qa.norm(q), 1, atol=1e-6)
+        if dtype == np.float64:  # (float32 products axis·angle round differently from scipy's)
+            want = Rotation.from_rotvec(axis * ang[:, None]).as_quat(scalar_first=True)
+            assert np.allclose(qa.distance(q, want), 0, atol=1e-8)
+    assert np.isnan(qa.from_rotvec([np.inf, 0, 0])).all()
