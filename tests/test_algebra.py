@@ -519,3 +519,33 @@ def test_zero_quaternion_gives_nan():
     for a in (z, np.full(4, np.nan), q):
         assert np.array_equal(qa.power(a, 0), [1, 0, 0, 0])
     assert np.array_equal(qa.power(np.zeros((2, 4), np.float32), [0, 0.5]), [[1, 0, 0, 0], [0, 0, 0, 0]])
+
+
+_THREADS_SCRIPT = """
+import threading, numpy as np, quatarray as qa
+from quatarray import algebra
+p, q = qa.random(250_000, rng=0), qa.random(250_000, rng=1)
+want = np.empty_like(p)
+algebra._multiply.serial(p, q, want)
+results = [None] * 4
+def work(k):
+    results[k] = [qa.multiply(p, q) for _ in range(5)]
+threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+for t in threads: t.start()
+for t in threads: t.join()
+import numba
+assert numba.threading_layer() == "workqueue", numba.threading_layer()
+assert all(np.array_equal(r, want) for rs in results for r in rs)
+print("ok")
+"""
+
+
+def test_concurrent_threads_on_workqueue_layer(tmp_path):
+    # issue 14.2: 4 threads in parallel kernels aborted the process on workqueue
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_THREADING_LAYER="workqueue", QUATARRAY_PARALLEL_MIN_ROWS="1000")
+    r = subprocess.run([sys.executable, "-c", _THREADS_SCRIPT], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
