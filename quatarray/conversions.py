@@ -235,12 +235,16 @@ def _from_matrix(m, out):
     bad = n
     for i in prange(n):
         a = load33(m, i)
-        # the determinant's sign and the projection on a scaled by its largest
-        # entry (no overflow or underflow in the products, whatever its scale)
-        c = max9abs(a)
-        c = c if (c > like(c, 0.0)) & (c < like(c, np.inf)) else like(c, 1.0)
-        s = (a[0] / c, a[1] / c, a[2] / c, a[3] / c, a[4] / c, a[5] / c, a[6] / c, a[7] / c, a[8] / c)
-        d = det33(s)
+        d = det33(a)
+        s = a
+        if not ((abs(d) > like(d, 1e-8)) & (abs(d) < like(d, 1e8))):
+            # far from unit scale (or zero, inf, nan): the determinant's sign and the
+            # projection on a scaled by its largest entry, so that no product
+            # overflows or underflows whatever the scale
+            c = max9abs(a)
+            c = c if (c > like(c, 0.0)) & (c < like(c, np.inf)) else like(c, 1.0)
+            s = (a[0] / c, a[1] / c, a[2] / c, a[3] / c, a[4] / c, a[5] / c, a[6] / c, a[7] / c, a[8] / c)
+            d = det33(s)
         nan = like(d, np.nan)
         if d <= like(d, 0.0):
             bad = min(bad, i)
