@@ -113,8 +113,31 @@ def qdot(p, q):
 
 
 @element
+def qscaled(q):
+    """(q / c, c), c the largest |component| of q (1 when that is 0, inf or nan).
+
+    The components of q / c (q times 1/c: one division) are at most 1 in
+    magnitude and one of them is about ±1, so their squares neither overflow nor
+    underflow, whatever the scale of q: every function that squares components
+    works on q / c (the same rotation). Zero and inf quaternions pass through
+    unscaled, to give nan (or inf, or a zero norm) as before; nan ones, and those
+    whose largest component is subnormal (below 2.2e-308 in float64, 1.2e-38 in
+    float32: 1/c overflows), give nan.
+    """
+    m = max(max(abs(q[0]), abs(q[1])), max(abs(q[2]), abs(q[3])))
+    r = like(m, 1.0) / m
+    ok = (r > like(m, 0.0)) & (r < like(m, np.inf))  # not for 0, inf, nan or subnormal m
+    keep = like(m, 1.0) if (m == like(m, 0.0)) | (m == like(m, np.inf)) else like(m, np.nan)
+    c = m if ok else keep
+    r = r if ok else keep
+    return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), c
+
+
+@element
 def qnorm(q):
-    return np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    """|q| for any scale of q (no overflow or underflow in the squares)."""
+    a, c = qscaled(q)
+    return c * np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
 
 
 @element
@@ -139,14 +162,18 @@ def canonical_flip(q):
 
 @element
 def qnormalize(q):
-    n = qnorm(q)
-    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+    """q / |q| for any non-zero scale of q; zero, inf and nan give nan."""
+    a = qscaled(q)[0]
+    n = np.sqrt(qdot(a, a))
+    return (a[0] / n, a[1] / n, a[2] / n, a[3] / n)
 
 
 @element
 def qinverse(q):
-    n2 = qdot(q, q)
-    return (q[0] / n2, -q[1] / n2, -q[2] / n2, -q[3] / n2)
+    """q* / |q|² for any non-zero scale of q (inf where 1/|q| overflows); zero gives nan."""
+    a, c = qscaled(q)
+    n2 = qdot(a, a)
+    return (a[0] / n2 / c, -a[1] / n2 / c, -a[2] / n2 / c, -a[3] / n2 / c)
 
 
 @element
@@ -163,8 +190,10 @@ def vnorm(v):
 def qrotate(q, v):
     """Vector part of q (0, v) q⁻¹, for any non-zero q (|q| need not be 1).
 
-    With u the vector part and t = u × v: v + (2/|q|²)(w t + u × t).
+    With u the vector part and t = u × v: v + (2/|q|²)(w t + u × t), on q
+    scaled by its largest component (:func:`qscaled`), so any scale works.
     """
+    q = qscaled(q)[0]
     w = q[0]
     u = (q[1], q[2], q[3])
     k = like(w, 2.0) / qdot(q, q)
@@ -179,7 +208,9 @@ def qrotate(q, v):
 
 @element
 def qmatrix(q):
-    """Row-major 3×3 rotation matrix of q/|q| (9-tuple); zero q gives nan."""
+    """Row-major 3×3 rotation matrix of q/|q| (9-tuple), for any non-zero scale
+    of q (:func:`qscaled`); zero q gives nan."""
+    q = qscaled(q)[0]
     w, x, y, z = q
     s = like(w, 2.0) / qdot(q, q)
     one = like(w, 1.0)
@@ -195,10 +226,14 @@ def qmatrix(q):
 
 @inline
 def half_angle(q):
-    """atan2(|u|, |w|): half the rotation angle in [0, π/2], for any scale of q
-    (0 for the zero quaternion). Branch-free (``_trig.atan2``), so the loops
-    using it vectorise."""
-    return atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
+    """atan2(|u|, |w|): half the rotation angle in [0, π/2] of a quaternion whose
+    components may be squared (scale it with :func:`qscaled` first); nan for the
+    zero quaternion. Branch-free (``_trig.atan2`` and selects), so the loops using
+    it vectorise."""
+    un = vnorm((q[1], q[2], q[3]))
+    aw = abs(q[0])
+    h = atan2(un, aw)
+    return like(aw, np.nan) if un + aw == like(aw, 0.0) else h
 
 
 @element
@@ -223,11 +258,18 @@ def qexp(q):
 def qlog(q):
     """Principal logarithm: (log|q|, θ u/|u|) with θ = atan2(|u|, w) in [0, π].
 
-    A negative real q has no unique axis; x is used, (log|w|, π, 0, 0).
+    A negative real q has no unique axis; x is used, (log|w|, π, 0, 0). Any
+    scale of q: log|q| = log c + log|q/c| (:func:`qscaled`) where c·|q/c|
+    would leave the normal float range.
     """
+    q, c = qscaled(q)
     un = vnorm((q[1], q[2], q[3]))
-    n = qnorm(q)
-    lw = np.log(n)
+    n = np.sqrt(qdot(q, q))
+    cn = c * n
+    if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
+        lw = np.log(cn)
+    else:
+        lw = np.log(c) + np.log(n)
     zero = like(n, 0.0)
     if un == zero:
         if q[0] < zero:

@@ -48,6 +48,7 @@ Kernel layers
 """
 
 import os
+import threading
 import types as _pytypes
 
 import numba
@@ -85,6 +86,13 @@ class RowLoop:
     ``rows`` is the index of the argument whose first axis is the loop
     length; calls with fewer than ``PARALLEL_MIN_ROWS`` rows use the
     serial variant.
+
+    numba's ``workqueue`` threading layer (the one left when neither TBB nor
+    OpenMP is installed) cannot run two parallel kernels at once: it aborts
+    the process. So one parallel kernel at a time runs under :data:`_PARALLEL`
+    (taken without waiting); a thread that finds it taken runs the serial
+    variant instead. Once a parallel call has shown the layer to be TBB or
+    OpenMP, which are safe, the lock is no longer used.
     """
 
     def __init__(self, fn, rows=0, parallel=True):
@@ -105,9 +113,31 @@ class RowLoop:
         self.__name__ = fn.__name__
 
     def __call__(self, *args):
-        if args[self.rows].shape[0] >= PARALLEL_MIN_ROWS:
+        if args[self.rows].shape[0] < PARALLEL_MIN_ROWS or self.parallel is self.serial:
+            return self.serial(*args)
+        if _SAFE_LAYER:
             return self.parallel(*args)
-        return self.serial(*args)
+        if not _PARALLEL.acquire(blocking=False):
+            return self.serial(*args)  # another thread is in a parallel kernel
+        try:
+            return self.parallel(*args)
+        finally:
+            _check_layer()
+            _PARALLEL.release()
+
+
+# One parallel kernel at a time until the threading layer is known to be safe
+# (see RowLoop); numba.threading_layer() answers only after a parallel call.
+_PARALLEL = threading.Lock()
+_SAFE_LAYER = False
+
+
+def _check_layer():
+    global _SAFE_LAYER
+    try:
+        _SAFE_LAYER = numba.threading_layer() in ("tbb", "omp")
+    except ValueError:  # no parallel kernel has run yet
+        pass
 
 
 def rowloop(fn=None, *, rows=0, parallel=True):

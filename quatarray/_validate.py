@@ -9,6 +9,7 @@ through here first. Every shape error uses one template::
 import contextlib
 import contextvars
 import math
+import operator
 
 import numpy as np
 
@@ -60,14 +61,27 @@ def is_weak(x):
     return type(x) in _WEAK
 
 
-def as_float(x, name, dtype=None):
-    """``x`` as a float32 or float64 ndarray (no copy where none is needed).
+def refuse_masked(x, name):
+    """Raise ``TypeError`` for a masked array: the kernels would read the
+    masked-out values as numbers (quatarray does not guess what a mask means)."""
+    if isinstance(x, np.ma.MaskedArray):
+        raise TypeError(
+            f"Expected `{name}` to be a plain array, got a masked array "
+            f"(its mask would be ignored; fill or compress it first, e.g. `{name}.filled(np.nan)`)."
+        )
 
-    float32 and float64 are kept; integers, booleans, lists and float16 become
-    float64 (float16 becomes float32); complex, object and strings raise
-    ``TypeError``. ``dtype`` forces a float dtype.
+
+def as_float(x, name, dtype=None):
+    """``x`` as a native float32 or float64 ndarray (no copy where none is needed).
+
+    float32 and float64 are kept, in either byte order (the result is in the
+    native order); float16 becomes float32; longer floats, integers, booleans
+    and lists become float64; complex, object and strings raise ``TypeError``,
+    and so do masked arrays (see :func:`refuse_masked`). ``dtype`` forces a
+    float dtype.
     """
     if isinstance(x, np.ndarray):
+        refuse_masked(x, name)
         a = np.asarray(x)  # drops subclasses such as np.memmap, never copies
     else:
         try:
@@ -76,10 +90,8 @@ def as_float(x, name, dtype=None):
             raise TypeError(f"Expected `{name}` to be an array of real numbers: {exc}") from None
     kind = a.dtype.kind
     if kind == "f":
-        if a.dtype == np.float16:
-            a = a.astype(np.float32)
-        elif a.dtype not in _FLOATS:
-            a = a.astype(np.float64)
+        if a.dtype not in _FLOATS:  # float16, non-native byte order, long double
+            a = a.astype(_F32 if a.dtype.itemsize <= 4 else _F64)
     elif kind in "biu":
         a = a.astype(np.float64)
     else:
@@ -87,6 +99,49 @@ def as_float(x, name, dtype=None):
     if dtype is not None and a.dtype != dtype:
         a = a.astype(dtype)
     return a
+
+
+def integer(x, name):
+    """`x` as a Python int: an integer or a 0-d integer array (as numpy takes
+    them, through ``operator.index``); booleans, floats and strings raise the
+    house ``TypeError``."""
+    if not isinstance(x, (bool, np.bool_)):
+        try:
+            return operator.index(x)
+        except TypeError:
+            pass
+    raise TypeError(f"Expected `{name}` to be an integer, got {type(x).__name__} {x!r}.")
+
+
+def leading_shape(shape, name):
+    """A leading-shape argument (``identity(shape)``, ``random(n)``) as a tuple:
+    a non-negative integer (or 0-d integer array) or a sequence of them.
+    Anything else raises ``TypeError``, a negative size ``ValueError``, both
+    naming the argument."""
+    try:
+        dims = (integer(shape, name),)
+    except TypeError:
+        try:
+            dims = tuple(integer(k, name) for k in shape)
+        except TypeError:
+            raise TypeError(
+                f"Expected `{name}` to be a non-negative integer or a tuple of them, "
+                f"got {type(shape).__name__} {shape!r}."
+            ) from None
+    if any(k < 0 for k in dims):
+        raise ValueError(f"Expected `{name}` to be a non-negative integer or a tuple of them, got {shape!r}.")
+    return dims
+
+
+def as_times(x, name):
+    """Sample times as an ndarray of a real, non-boolean dtype (floats or
+    integers such as nanosecond stamps, kept as they are); else ``TypeError``
+    naming the argument."""
+    refuse_masked(x, name)
+    t = np.asarray(x)
+    if t.dtype.kind not in "iuf":
+        raise TypeError(f"Expected `{name}` to have a real (float or integer) dtype, got {t.dtype}.")
+    return t
 
 
 def float_dtype(dtype):
@@ -138,7 +193,7 @@ def flatten(a, lead, core):
 
 def check_out(out, shape, dtype):
     """Raise ``ValueError`` unless ``out`` is a writeable array of this shape and dtype."""
-    if not isinstance(out, np.ndarray):
+    if not isinstance(out, np.ndarray) or isinstance(out, np.ma.MaskedArray):
         raise ValueError(f"Expected `out` to be a numpy array, got {type(out).__name__}.")
     if out.shape != tuple(shape) or out.dtype != dtype:
         raise ValueError(
@@ -223,8 +278,11 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
         raise ValueError("`out` is only accepted by functions with a single result.")
     core = out_cores[0]
     check_out(out, lead + core, dtype)
+    # A subclass (np.matrix, say) may reshape to other shapes than asked: the
+    # kernels see its plain ndarray view.
+    base = out if type(out) is np.ndarray else out.view(np.ndarray)
     try:
-        o = np.reshape(out, (n,) + core, copy=False)
+        o = np.reshape(base, (n,) + core, copy=False)
     except ValueError:
         o = None
     target = o if o is not None else np.empty((n,) + core, dtype)
@@ -235,7 +293,7 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
     ]
     kernel(*flat, target)
     if o is None:
-        out[...] = target.reshape(out.shape)
+        base[...] = target.reshape(base.shape)
     return out
 
 
@@ -246,6 +304,7 @@ def scan(kernel, q, axis, fname):
     views (the scan runs along the first axis, for each of the M columns) and
     is not called for K = 0.
     """
+    axis = integer(axis, "axis")
     a = check_core(as_float(q, "q"), "q", (4,))
     lead = a.ndim - 1
     if lead == 0:

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import kernel, like, prange, rowloop
-from ._validate import as_float, check_core, elementwise, float_dtype, scan
+from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
 
@@ -69,7 +69,11 @@ def _log(q, out):
 @rowloop
 def _power(q, t, out):
     for i in prange(q.shape[0]):
-        E.store4(out, i, E.qexp(E.qscale(E.qlog(E.load4(q, i)), t[i])))
+        ti = t[i]
+        if ti == like(ti, 0.0):  # q⁰ = 1 for every q, as numpy's 0.0**0 and nan**0
+            E.store4(out, i, (like(ti, 1.0), like(ti, 0.0), like(ti, 0.0), like(ti, 0.0)))
+        else:
+            E.store4(out, i, E.qexp(E.qscale(E.qlog(E.load4(q, i)), ti)))
 
 
 @rowloop
@@ -82,13 +86,15 @@ def _canonical(q, out):
 @rowloop
 def _angle(q, out):
     for i in prange(q.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.load4(q, i))
+        out[i] = like(out, 2.0) * E.half_angle(E.qscaled(E.load4(q, i))[0])
 
 
 @rowloop
 def _distance(p, q, out):
     for i in prange(p.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i)))
+        a = E.qscaled(E.load4(p, i))[0]
+        b = E.qscaled(E.load4(q, i))[0]
+        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(a), b))
 
 
 @kernel
@@ -104,9 +110,13 @@ def _cumprod(q, out):
 
 @kernel
 def _outer_sum(q, w, acc):
-    # acc (4, 4) float64 += w_i q_i q_iᵀ / |q_i|², accumulated in float64.
+    # acc (4, 4) float64 += w_i q_i q_iᵀ / |q_i|², accumulated in float64; each q_i
+    # is first divided by its largest |component| (no overflow or underflow in the
+    # squares, whatever its scale; a zero, inf or nan row makes acc nan).
     for i in range(q.shape[0]):
         a = (float(q[i, 0]), float(q[i, 1]), float(q[i, 2]), float(q[i, 3]))
+        m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
+        a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
         s = float(w[i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
         for r in range(4):
             for c in range(4):
@@ -307,8 +317,7 @@ def identity(shape=(), dtype=np.float64):
            [1., 0., 0., 0.]], dtype=float32)
     """
     dtype = float_dtype(dtype)
-    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-    out = np.zeros(shape + Q, dtype)
+    out = np.zeros(leading_shape(shape, "shape") + Q, dtype)
     out[..., 0] = 1
     return out
 
@@ -334,7 +343,7 @@ def random(n=None, rng=None, dtype=np.float64):
     """
     dtype = float_dtype(dtype)
     gen = np.random.default_rng(rng)
-    shape = () if n is None else ((n,) if isinstance(n, (int, np.integer)) else tuple(n))
+    shape = () if n is None else leading_shape(n, "n")
     q = gen.standard_normal(shape + Q)
     nrm = np.linalg.norm(q, axis=-1, keepdims=True)
     while np.any(nrm < 1e-6):  # probability ~0; redraw rather than divide by ~0
@@ -348,7 +357,11 @@ def mean(q, weights=None):
     """Rotation mean as scipy's ``Rotation.mean``: the eigenvector of the largest
     eigenvalue of Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (sign-invariant), over all leading axes.
 
-    Returns the canonical sign (see :func:`canonical`).
+    Returns the canonical sign (see :func:`canonical`). Weights that are all
+    zero give the identity, as in scipy. A zero, inf or nan quaternion, or a
+    negative, inf or nan weight, raises ``ValueError`` naming the first such
+    row (scipy refuses zero and nan quaternions and fails to converge on the
+    others).
 
     Examples
     --------
@@ -369,8 +382,27 @@ def mean(q, weights=None):
             raise ValueError(f"Expected `weights` to have shape {a.shape[:-1]}, got {w.shape}.")
         w = w.reshape(-1)
         if np.any(w < 0):
-            raise ValueError(f"Expected `weights` to be non-negative, got {w[w < 0][0]} at row {int(np.argmax(w < 0))}.")
+            k = int(np.argmax(w < 0))
+            raise ValueError(f"Expected `weights` to be non-negative; {where(k, a.shape[:-1])} has weight {w[k]}.")
     acc = np.zeros((4, 4))
     _outer_sum(flat, w, acc)
+    if not np.isfinite(acc).all():
+        raise _mean_bad_row(flat, w, a.shape[:-1])
+    if not acc.any():  # all weights zero: scipy's answer
+        return identity(dtype=a.dtype)
     vals, vecs = np.linalg.eigh(acc)
     return canonical(vecs[:, -1].astype(a.dtype))
+
+
+def _mean_bad_row(flat, w, lead):
+    """The ``ValueError`` naming the first row that made :func:`mean`'s sum non-finite."""
+    finite = np.isfinite(flat).all(axis=1)
+    bad_q = ~finite | ~(flat != 0).any(axis=1)
+    bad_w = ~np.isfinite(w)
+    k = int(np.argmax(bad_q | bad_w)) if (bad_q | bad_w).any() else None
+    if k is None:
+        return ValueError("Expected `weights` whose sum is finite; the weighted sum overflows.")
+    if bad_q[k]:
+        what = "zero" if finite[k] else "not finite"
+        return ValueError(f"Expected `q` to be finite and non-zero; {where(k, lead)} is {what}: {flat[k].tolist()}.")
+    return ValueError(f"Expected `weights` to be finite; {where(k, lead)} has weight {w[k]}.")

@@ -22,8 +22,8 @@ import numpy as np
 from . import _elements as E
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
-from ._trig import half_arc, sincos
-from ._validate import as_float, check_core, elementwise, is_weak, shape_error, where
+from ._trig import half_arc, sincos, sincos_limit
+from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
 
 Q = (4,)
 V = (3,)
@@ -49,6 +49,14 @@ def sumsq9(a):
     for k in range(1, 9):
         s += a[k] * a[k]
     return s
+
+
+@element
+def max9abs(a):
+    m = abs(a[0])
+    for k in range(1, 9):
+        m = max(m, abs(a[k]))
+    return m
 
 
 @element
@@ -137,7 +145,8 @@ def shepperd(a):
 @inline
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
-    θ = 2 atan2(|u|, |w|) in [0, π]."""
+    θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
+    q = E.qscaled(q)[0]
     w, x, y, z = q
     un = E.vnorm((x, y, z))
     aw = abs(w)
@@ -150,7 +159,9 @@ def qrotvec(q):
 
 @inline
 def qaxis_angle(q):
-    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan."""
+    """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
+    any scale of q (:func:`_elements.qscaled`)."""
+    q = E.qscaled(q)[0]
     w, x, y, z = q
     zero = like(w, 0.0)
     un = E.vnorm((x, y, z))
@@ -225,6 +236,15 @@ def _from_matrix(m, out):
     for i in prange(n):
         a = load33(m, i)
         d = det33(a)
+        s = a
+        if not ((abs(d) > like(d, 1e-8)) & (abs(d) < like(d, 1e8))):
+            # far from unit scale (or zero, inf, nan): the determinant's sign and the
+            # projection on a scaled by its largest entry, so that no product
+            # overflows or underflows whatever the scale
+            c = max9abs(a)
+            c = c if (c > like(c, 0.0)) & (c < like(c, np.inf)) else like(c, 1.0)
+            s = (a[0] / c, a[1] / c, a[2] / c, a[3] / c, a[4] / c, a[5] / c, a[6] / c, a[7] / c, a[8] / c)
+            d = det33(s)
         nan = like(d, np.nan)
         if d <= like(d, 0.0):
             bad = min(bad, i)
@@ -234,7 +254,7 @@ def _from_matrix(m, out):
         elif near_orthogonal(a):
             q = shepperd(a)
         else:
-            q = shepperd(polar33(a, eps))
+            q = shepperd(polar33(s, eps))
         E.store4(out, i, q)
     return bad if bad < n else -1
 
@@ -253,8 +273,24 @@ def _as_rotvec(q, out):
 
 @rowloop
 def _from_rotvec(r, out):
+    # Returns how many rows have half angles beyond the fast sincos range (or inf):
+    # _from_rotvec_far redoes those with libm, as quatarray.euler does.
+    far = 0
     for i in prange(r.shape[0]):
-        E.store4(out, i, rotvec_quat(E.load3(r, i)))
+        v = E.load3(r, i)
+        E.store4(out, i, rotvec_quat(v))
+        far += abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0])
+    return far
+
+
+@rowloop(parallel=False)
+def _from_rotvec_far(r, out):
+    for i in range(r.shape[0]):
+        v = E.load3(r, i)
+        h = like(v[0], 0.5) * E.vnorm(v)
+        if abs(h) > sincos_limit(h):
+            k = half_sinc(h, np.sin(h))
+            E.store4(out, i, (np.cos(h), k * v[0], k * v[1], k * v[2]))
 
 
 @rowloop
@@ -267,7 +303,8 @@ def _as_axis_angle(q, axis, ang):
 
 @rowloop
 def _from_axis_angle(axis, ang, out):
-    # Returns the first row whose axis is zero (its output is nan), or -1.
+    # Returns the first row whose axis is zero (its output is nan), or -1. Half
+    # angles beyond the fast sincos range (or inf) take libm's sin and cos.
     n = axis.shape[0]
     bad = n
     for i in prange(n):
@@ -276,7 +313,10 @@ def _from_axis_angle(axis, ang, out):
         if un == like(un, 0.0):
             bad = min(bad, i)
         h = like(un, 0.5) * ang[i]
-        sn, c = sincos(h)
+        if abs(h) > sincos_limit(h):
+            sn, c = np.sin(h), np.cos(h)
+        else:
+            sn, c = sincos(h)
         k = sn / un
         if not np.isfinite(un):
             c = like(un, np.nan)  # a nan or inf axis gives nan, not (cos h, nan, …)
@@ -493,9 +533,10 @@ def from_rotvec(r, degrees=False, out=None):
     """Unit quaternions (cos(θ/2), sin(θ/2)·r/θ) of rotation vectors r, θ = |r|.
 
     Accurate for tiny vectors (a series replaces sin(θ/2)/θ near 0). Vectors
-    longer than π are accepted (w < 0 then), as in scipy; the branch-free
-    sine and cosine used here are exact to rounding for |r| below about
-    3·10⁶ rad and lose accuracy slowly beyond.
+    longer than π are accepted (w < 0 then), as in scipy; beyond the range of
+    the fast branch-free sine and cosine (|r| above 2·10⁶ rad, float32 65536
+    rad) the rows are redone with libm's, so the result is a unit quaternion
+    for any finite angle.
 
     Parameters
     ----------
@@ -517,7 +558,11 @@ def from_rotvec(r, degrees=False, out=None):
     >>> qa.from_rotvec([1e-12, 0, 0])
     array([1.e+00, 5.e-13, 0.e+00, 0.e+00])
     """
-    return elementwise(_from_rotvec, [(_radians(r, "r", degrees), "r", V)], [Q], out)
+    inputs = [(_radians(r, "r", degrees), "r", V)]
+    res, far = _with_status(_from_rotvec, inputs, [Q], out)
+    if far:  # rare: |r| beyond 2·10⁶ rad (float32: 65536 rad) or inf
+        elementwise(_from_rotvec_far, inputs, [Q], res)
+    return res
 
 
 def as_axis_angle(q, degrees=False):
@@ -722,11 +767,15 @@ def from_su2(m, out=None):
     >>> qa.from_su2([[1 + 2j, 3 + 4j], [-3 + 4j, 1 - 2j]])
     array([1., 2., 3., 4.])
     """
-    a = m if isinstance(m, np.ndarray) else np.asarray(m)
+    refuse_masked(m, "m")
+    try:
+        a = np.asarray(m)
+    except (ValueError, TypeError) as exc:
+        raise TypeError(f"Expected `m` to be an array of complex or real numbers: {exc}") from None
     kind = a.dtype.kind
-    if kind == "c":
-        ctype = np.complex64 if a.dtype == np.complex64 else np.complex128
-    elif kind == "f" and a.dtype in (np.float16, np.float32):
+    if kind == "c":  # complex64 in either byte order stays complex64
+        ctype = np.complex64 if a.dtype.itemsize <= 8 else np.complex128
+    elif kind == "f" and a.dtype.itemsize <= 4:
         ctype = np.complex64
     elif kind in "fbiu":
         ctype = np.complex128

@@ -121,7 +121,8 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked):
     lb = like(q, lamb)
     s = like(q, scale)
     for r in prange(n):
-        w, x, y, z = qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]
+        # scaled by the largest component (E.qscaled): any scale of q
+        (w, x, y, z), _ = E.qscaled((qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]))
         one = like(w, 1.0)
         zero = like(w, 0.0)
         two = like(w, 2.0)
@@ -251,8 +252,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     """Euler angles of rotation quaternions, as scipy's ``Rotation.as_euler``.
 
     Computed from the quaternion directly (Bernardes & Viollet), for any
-    scale of `q` between about 1e-150 and 1e150 (no normalising needed); a
-    zero, inf or nan quaternion gives nan angles.
+    non-zero scale of `q` (no normalising needed); a zero, inf or nan
+    quaternion gives nan angles.
 
     Parameters
     ----------

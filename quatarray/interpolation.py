@@ -25,7 +25,7 @@ from numba.extending import overload
 
 from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
 from ._trig import half_arc, sincos
-from ._validate import as_float, check_core, elementwise, scan, shape_error
+from ._validate import as_float, as_times, check_core, elementwise, scan, shape_error
 
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
@@ -1205,7 +1205,7 @@ def spline(times, keys, new_times, method="bezier"):
     if method not in _SPLINE:
         raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
     q = _keys(keys)
-    t, nt = _plan_times(_times(times, q.shape[0]), np.asarray(new_times))
+    t, nt = _plan_times(_times(as_times(times, "times"), q.shape[0]), as_times(new_times, "new_times"))
     return _spline_unit(t, nt, _unit_keys([q]), method)
 
 
@@ -1288,8 +1288,8 @@ def angular_velocity(q, times, frame="space"):
         raise ValueError(f"Expected `frame` to be 'space' or 'body', got {frame!r}.")
     a = _keys(q, "q")
     n = a.shape[0]
-    t = _times(times, n).astype(np.float64)
-    h = np.diff(t).astype(a.dtype)
+    # Steps in the times' own type (exact for int64 ns stamps), then float.
+    h = np.diff(_times(as_times(times, "times"), n)).astype(a.dtype)
     w = np.empty((n - 1, 3), a.dtype)
     _interval_rates(a, h, frame == "body", w)
     out = np.empty((n, 3), a.dtype)

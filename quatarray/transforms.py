@@ -597,7 +597,7 @@ class VQS(_Transform):
 
     def _check(self, lead, q, x):
         super()._check(lead, q, x)
-        bad = np.flatnonzero(x.reshape(-1) <= 0)
+        bad = np.flatnonzero(~(x.reshape(-1) > 0))  # nan too
         if bad.size:
             k = bad[0]
             raise ValueError(f"Expected `s` to be positive; {where(k, lead)} has s = {x.reshape(-1)[k]}.")

@@ -238,7 +238,7 @@ def test_angle_and_distance(rng):
     a = np.concatenate([q, q * [1e-3, 1, 1, 1], q * [1, 1e-3, 1e-3, 1e-3]])
     ref = 2 * np.arctan2(np.linalg.norm(a[:, 1:], axis=1), np.abs(a[:, 0]))
     assert np.all(np.abs(qa.angle(a) - ref) <= 2 * np.spacing(ref))
-    assert qa.angle(np.zeros(4)) == 0 and qa.angle([-0.0, 0, 0, 0]) == 0  # atan2(0, 0)
+    assert np.isnan(qa.angle(np.zeros(4))) and np.isnan(qa.angle([-0.0, 0, 0, 0]))  # no rotation (issue 14.7)
     assert np.isnan(qa.angle([np.nan, 0, 0, 0])) and np.isnan(qa.angle([0, 0, np.nan, 0]))
 
 
@@ -330,3 +330,222 @@ def test_conjugate_reverses_products(p, q):
 def test_scans_of_empty_streams():
     assert qa.cumprod(np.empty((0, 4))).shape == (0, 4)
     assert qa.cumprod(np.empty((3, 0, 4)), axis=1).shape == (3, 0, 4)
+
+
+# ---------------------------------------------------------------- hardening (issue 14)
+
+
+class _Sub(np.ndarray):
+    """An ndarray subclass whose reshape(-1) stays 2-D, like np.matrix."""
+
+    def reshape(self, *shape, **kw):
+        return np.asarray(self).reshape(1, -1).view(type(self))
+
+
+def out_cases(rng):
+    """(name, call with out=, result shape) for the element-wise functions with ``out=``
+    outside quatarray.interpolation."""
+    q, p = qa.random(1000, rng), qa.random(1000, rng)
+    v = rng.normal(size=(1000, 3))
+    m = qa.as_matrix(q)
+    u = qa.as_su2(q)
+    T = qa.VQS(v, q, rng.uniform(1, 2, 1000))
+    return [
+        ("multiply", lambda out: qa.multiply(p, q, out=out), (1000, 4)),
+        ("conjugate", lambda out: qa.conjugate(q, out=out), (1000, 4)),
+        ("inverse", lambda out: qa.inverse(q, out=out), (1000, 4)),
+        ("normalize", lambda out: qa.normalize(q, out=out), (1000, 4)),
+        ("exp", lambda out: qa.exp(q, out=out), (1000, 4)),
+        ("log", lambda out: qa.log(q, out=out), (1000, 4)),
+        ("power", lambda out: qa.power(q, 0.3, out=out), (1000, 4)),
+        ("canonical", lambda out: qa.canonical(q, out=out), (1000, 4)),
+        ("rotate", lambda out: qa.rotate(q, v, out=out), (1000, 3)),
+        ("as_matrix", lambda out: qa.as_matrix(q, out=out), (1000, 3, 3)),
+        ("from_matrix", lambda out: qa.from_matrix(m, out=out), (1000, 4)),
+        ("from_matrix_valid", lambda out: qa.from_matrix(m, assume_valid=True, out=out), (1000, 4)),
+        ("as_rotvec", lambda out: qa.as_rotvec(q, out=out), (1000, 3)),
+        ("from_rotvec", lambda out: qa.from_rotvec(v, out=out), (1000, 4)),
+        ("from_axis_angle", lambda out: qa.from_axis_angle(v, v[:, 0], out=out), (1000, 4)),
+        ("as_xyzw", lambda out: qa.as_xyzw(q, out=out), (1000, 4)),
+        ("from_xyzw", lambda out: qa.from_xyzw(q, out=out), (1000, 4)),
+        ("as_left_matrix", lambda out: qa.as_left_matrix(q, out=out), (1000, 4, 4)),
+        ("as_right_matrix", lambda out: qa.as_right_matrix(q, out=out), (1000, 4, 4)),
+        ("from_su2", lambda out: qa.from_su2(u, out=out), (1000, 4)),
+        ("VQS.apply", lambda out: T.apply(v, out=out), (1000, 3)),
+    ]
+
+
+@pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
+@pytest.mark.parametrize("kind", ["matrix", "subclass"])
+def test_out_subclasses_filled_in_bounds(rng, kind):
+    # issue 14.1: np.matrix (2-D only) and subclasses whose reshape stays 2-D
+    for name, call, shape in out_cases(rng):
+        want = call(None)
+        if kind == "matrix":
+            if len(shape) != 2:
+                continue
+            out = np.matrix(np.zeros(shape))
+        else:
+            out = np.zeros(shape).view(_Sub)
+        assert call(out) is out, name
+        assert np.array_equal(np.asarray(out), want), name
+
+
+def test_masked_arrays_refused(rng):
+    # issue 14.11: a mask would be ignored by the kernels, so masked input is refused
+    q = np.ma.masked_array(qa.random(5, rng), mask=False)
+    for f in (qa.normalize, qa.norm, qa.as_matrix, qa.mean, lambda a: qa.as_euler(a, "xyz"), qa.cumprod):
+        with pytest.raises(TypeError, match="`q`.*masked"):
+            f(q)
+    with pytest.raises(TypeError, match="`p`.*masked"):
+        qa.multiply(q, q.data)
+    with pytest.raises(ValueError, match="`out`"):
+        qa.conjugate(q.data, out=np.ma.masked_array(np.zeros((5, 4))))
+
+
+@pytest.mark.parametrize("order", [">", "<"])
+def test_any_byte_order_keeps_float32(rng, order):
+    # issue 14.11: '>f4' (and '<f4') in → native float32 out; float16 → float32
+    q = qa.random(7, rng)
+    for dt, want in ((order + "f4", np.float32), (order + "f8", np.float64), ("f2", np.float32)):
+        a = q.astype(dt)
+        for f in (qa.normalize, qa.norm, qa.as_matrix, qa.as_rotvec, qa.mean, qa.cumprod, qa.angle):
+            r = f(a)
+            assert r.dtype == want and r.dtype.isnative, (f, dt)
+        assert qa.multiply(a, a).dtype == want and qa.power(a, 0.5).dtype == want
+        assert qa.rotate(a, np.ones(3, dt)).dtype == want
+        assert qa.as_euler(a, "xyz").dtype == want
+        assert np.allclose(qa.normalize(a), qa.normalize(q), atol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "call, name",
+    [
+        (lambda: qa.identity(2.5), "shape"),
+        (lambda: qa.identity((2, 2.5)), "shape"),
+        (lambda: qa.identity(True), "shape"),
+        (lambda: qa.identity("3"), "shape"),
+        (lambda: qa.random(2.5), "n"),
+        (lambda: qa.random(True), "n"),
+        (lambda: qa.random((2, None)), "n"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=1.0), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis="0"), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=None), "axis"),
+        (lambda: qa.cumprod(np.ones((3, 4)), axis=True), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis=1.0), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis="0"), "axis"),
+        (lambda: qa.unflip(np.ones((3, 4)), axis=None), "axis"),
+    ],
+)
+def test_bad_integer_arguments_named(call, name):
+    # issue 14.10
+    with pytest.raises(TypeError, match=f"Expected `{name}` to be"):
+        call()
+
+
+def test_negative_and_array_sizes():
+    # issue 14.10: negative sizes refused by name; a 0-d integer array is a size, as in numpy
+    for call, name in ((lambda: qa.random(-1), "n"), (lambda: qa.identity((2, -1)), "shape")):
+        with pytest.raises(ValueError, match=f"Expected `{name}` to be a non-negative"):
+            call()
+    assert qa.random(np.array(3), rng=0).shape == (3, 4)
+    assert qa.identity(np.int8(2)).shape == (2, 4)
+    assert qa.identity(np.array([2, 3])).shape == (2, 3, 4)
+    assert qa.cumprod(np.ones((2, 3, 4)), axis=np.array(1)).shape == (2, 3, 4)
+
+
+def test_mean_zero_weights_and_bad_rows(rng):
+    # issue 14.9: all-zero weights gave a 180° turn (scipy: the identity); a zero,
+    # nan or inf row or weight raised LinAlgError
+    q = qa.random(6, rng)
+    want = R(q).mean(weights=np.zeros(6)).as_quat(scalar_first=True)
+    assert np.array_equal(qa.mean(q, np.zeros(6)), want) and np.array_equal(want, [1, 0, 0, 0])
+    assert qa.mean(q.astype(np.float32), np.zeros(6)).dtype == np.float32
+    for bad in (0.0, np.nan, np.inf):
+        b = q.copy()
+        b[3] = bad
+        with pytest.raises(ValueError, match=r"Expected `q` to be finite and non-zero; row 3"):
+            qa.mean(b)
+        with pytest.raises(ValueError, match=r"`q`.*index \(1, 0\)"):
+            qa.mean(b.reshape(2, 3, 4))
+    for bad in (np.nan, np.inf):
+        w = np.ones(6)
+        w[2] = bad
+        with pytest.raises(ValueError, match=r"Expected `weights` to be finite; row 2"):
+            qa.mean(q, w)
+    with pytest.raises(ValueError, match=r"Expected `weights` to be non-negative; row 4"):
+        qa.mean(q, [1, 1, 1, 1, -1, 1])
+    # any scale (issue 14.5)
+    for scale in (1e-160, 1e160, 1e300):
+        assert np.allclose(qa.distance(qa.mean(q * scale), qa.mean(q)), 0, atol=1e-14)
+
+
+SCALES = {np.float64: (1e-300, 1e-160, 1e160, 1e300), np.float32: (1e-37, 1e-30, 1e30, 1e37)}
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_any_scale_algebra(rng, dtype):
+    # issue 14.5: 1e160·q gave a zero norm-free identity angle, normalize zeros, 1e-160·q nan
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    q0 = np.concatenate([qa.random(20, rng), [[np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]]]).astype(dtype)
+    p0 = qa.random(21, rng).astype(dtype)
+    for s in SCALES[dtype]:
+        s = dtype(s)
+        q = q0 * s
+        assert np.allclose(qa.norm(q) / s, 1, rtol=tol, atol=0)
+        assert np.allclose(qa.normalize(q), q0, atol=tol)
+        assert np.allclose(qa.inverse(q) * s, qa.conjugate(q0), atol=tol)
+        assert np.allclose(qa.angle(q), qa.angle(q0), atol=tol)
+        assert np.allclose(qa.distance(q, p0 * s), qa.distance(q0, p0), atol=tol)
+        assert np.allclose(qa.distance(q, q0), 0, atol=tol)
+        lq, l0 = qa.log(q), qa.log(q0)
+        assert np.allclose(lq[:, 1:], l0[:, 1:], atol=tol)
+        assert np.allclose(lq[:, 0], np.log(np.float64(s)), rtol=tol)
+        assert np.allclose(qa.distance(qa.mean(q), qa.mean(q0)), 0, atol=tol)
+    # subnormal scales are out of range: nan, never a wrong finite answer
+    if dtype == np.float64:
+        tiny = q0 * 1e-315
+        for f in (qa.norm, qa.normalize, qa.angle, qa.log):
+            assert np.isnan(f(tiny)).all()
+
+
+def test_zero_quaternion_gives_nan():
+    # issue 14.7: distance(0, q), distance(q, 0) and angle(0) gave 0
+    z, q = np.zeros(4), qa.from_rotvec([0.1, 0.2, 0.3])
+    assert np.isnan(qa.angle(z)) and np.isnan(qa.distance(z, q)) and np.isnan(qa.distance(q, z))
+    assert np.isnan(qa.angle(np.zeros((3, 4), np.float32))).all()
+    assert qa.norm(z) == 0
+    # q⁰ = 1 for every q, as numpy's 0.0**0 (and nan**0)
+    for a in (z, np.full(4, np.nan), q):
+        assert np.array_equal(qa.power(a, 0), [1, 0, 0, 0])
+    assert np.array_equal(qa.power(np.zeros((2, 4), np.float32), [0, 0.5]), [[1, 0, 0, 0], [0, 0, 0, 0]])
+
+
+_THREADS_SCRIPT = """
+import threading, numpy as np, quatarray as qa
+from quatarray import algebra
+p, q = qa.random(250_000, rng=0), qa.random(250_000, rng=1)
+want = np.empty_like(p)
+algebra._multiply.serial(p, q, want)
+results = [None] * 4
+def work(k):
+    results[k] = [qa.multiply(p, q) for _ in range(5)]
+threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+for t in threads: t.start()
+for t in threads: t.join()
+import numba
+assert numba.threading_layer() == "workqueue", numba.threading_layer()
+assert all(np.array_equal(r, want) for rs in results for r in rs)
+print("ok")
+"""
+
+
+def test_concurrent_threads_on_workqueue_layer(tmp_path):
+    # issue 14.2: 4 threads in parallel kernels aborted the process on workqueue
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_THREADING_LAYER="workqueue", QUATARRAY_PARALLEL_MIN_ROWS="1000")
+    r = subprocess.run([sys.executable, "-c", _THREADS_SCRIPT], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]

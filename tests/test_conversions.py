@@ -423,3 +423,73 @@ def test_parallel_variants_report_the_first_bad_row(rng):
     ang = rng.standard_normal(3000)
     assert C._from_axis_angle.parallel(axis, ang, out_p) == 1234 == C._from_axis_angle.serial(axis, ang, out_s)
     assert np.array_equal(out_p, out_s, equal_nan=True)
+
+
+# ---------------------------------------------------------------- hardening (issue 14)
+
+
+def test_from_su2_byte_order_ragged_and_masked(rng):
+    # issue 14.10 / 14.11
+    q = qa.random(5, rng)
+    u = qa.as_su2(q)
+    for dt, want in ((">c8", np.float32), ("<c8", np.float32), (">c16", np.float64), (">f4", np.float32)):
+        m = u.astype(dt) if dt[1] == "c" else u.real.astype(dt)
+        r = qa.from_su2(m)
+        assert r.dtype == want and r.dtype.isnative, dt
+    assert np.allclose(qa.from_su2(u.astype(">c8")), q, atol=1e-6)
+    with pytest.raises(TypeError, match="Expected `m` to be an array"):
+        qa.from_su2([[[1, 0], [0, 1]], [[1, 0]]])
+    with pytest.raises(TypeError, match="`m`.*masked"):
+        qa.from_su2(np.ma.masked_array(u))
+
+
+def test_big_endian_float32_conversions(rng):
+    # issue 14.11: '>f4' in any function gives native float32
+    q = qa.random(5, rng).astype(">f4")
+    for r in (qa.as_matrix(q), qa.from_matrix(qa.as_matrix(q).astype(">f4")), qa.as_rotvec(q),
+              qa.from_rotvec(np.ones((5, 3), ">f4")), qa.as_axis_angle(q)[0], qa.as_left_matrix(q),
+              qa.from_axis_angle(np.ones((5, 3), ">f4"), np.ones(5, ">f4")), qa.as_xyzw(q)):
+        assert r.dtype == np.float32 and r.dtype.isnative
+    assert qa.as_su2(q).dtype == np.complex64
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_any_scale_conversions(rng, dtype):
+    # issue 14.5: 1e160·q gave the identity matrix and a zero rotation vector,
+    # 1e-160·q nan, from_matrix(1e120·R) nan
+    tol = 1e-12 if dtype == np.float64 else 2e-6
+    scales = (1e-300, 1e-160, 1e160, 1e300) if dtype == np.float64 else (1e-37, 1e-30, 1e30, 1e37)
+    q0 = np.concatenate([qa.random(20, rng), [[np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0]]]).astype(dtype)
+    v = rng.normal(size=(21, 3)).astype(dtype)
+    m0 = qa.as_matrix(q0)
+    for s in scales:
+        s = dtype(s)
+        q = q0 * s
+        assert np.allclose(qa.as_matrix(q), m0, atol=tol)
+        assert np.allclose(qa.rotate(q, v), qa.rotate(q0, v), atol=10 * tol)
+        assert np.allclose(qa.rotate(q[-1], v), qa.rotate(q0[-1], v), atol=10 * tol)
+        assert np.allclose(qa.as_rotvec(q), qa.as_rotvec(q0), atol=tol)
+        for a, b in zip(qa.as_axis_angle(q), qa.as_axis_angle(q0)):
+            assert np.allclose(a, b, atol=tol)
+        assert np.allclose(qa.as_euler(q, "ZYX", suppress_warnings=True), qa.as_euler(q0, "ZYX", suppress_warnings=True), atol=tol)
+        assert np.allclose(qa.as_euler(q, "zxz"), qa.as_euler(q0, "zxz"), atol=tol)
+        assert np.allclose(qa.distance(qa.from_matrix(m0 * s), q0), 0, atol=10 * tol)
+        T = qa.VQS(v, q, 2.0)
+        assert np.allclose(T.apply(v), qa.VQS(v, q0, 2.0).apply(v), atol=10 * tol)
+        assert np.allclose((T @ T.inverse()).apply(v), v, atol=100 * tol)
+    with pytest.raises(ValueError, match="determinant"):
+        qa.from_matrix(np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_huge_angles_give_unit_quaternions(rng, dtype):
+    # issue 14.6: from_rotvec / from_axis_angle at 1e18 rad gave |q| ≈ 2e15
+    ang = np.array([1e18, -3e7, 7e5, 1e30 if dtype == np.float64 else 1e19, 4e6], dtype)
+    axis = qa.normalize(np.concatenate([rng.normal(size=(5, 3)), np.zeros((5, 1))], 1))[:, :3].astype(dtype)
+    for q in (qa.from_rotvec(axis * ang[:, None]), qa.from_axis_angle(axis, ang)):
+        assert q.dtype == dtype
+        assert np.allclose(qa.norm(q), 1, atol=1e-6)
+        if dtype == np.float64:  # (float32 products axis·angle round differently from scipy's)
+            want = Rotation.from_rotvec(axis * ang[:, None]).as_quat(scalar_first=True)
+            assert np.allclose(qa.distance(q, want), 0, atol=1e-8)
+    assert np.isnan(qa.from_rotvec([np.inf, 0, 0])).all()

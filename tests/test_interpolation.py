@@ -478,3 +478,65 @@ def test_real_stream_bezier_beats_slerp(data_dir, load):
         r = qa.spline(keys_t, keys, t[inner], method=method)
         err[method] = float(np.sqrt(np.mean(qa.distance(r, truth) ** 2)))
     assert err["bezier"] < err["slerp"], err
+
+
+# ---------------------------------------------------------------- hardening (issue 14)
+
+
+class _Sub(np.ndarray):
+    """An ndarray subclass whose reshape(-1) stays 2-D, like np.matrix."""
+
+    def reshape(self, *shape, **kw):
+        return np.asarray(self).reshape(1, -1).view(type(self))
+
+
+@pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
+@pytest.mark.parametrize("kind", ["matrix", "subclass"])
+def test_out_subclasses_filled_in_bounds(rng, kind):
+    # issue 14.1: these used to write past a 2-D-only `out` (segfault)
+    p, q, a, b = (qa.random(1000, rng) for _ in range(4))
+    t = rng.uniform(0, 1, 1000)
+    calls = {
+        "lerp": lambda out: qa.lerp(p, q, 0.3, out=out),
+        "nlerp": lambda out: qa.nlerp(p, q, t, out=out),
+        "slerp": lambda out: qa.slerp(p, q, 0.3, out=out),
+        "slerp strided": lambda out: qa.slerp(p[:, ::-1], q, t, out=out),
+        "double": lambda out: qa.double(p, q, out=out),
+        "bisect": lambda out: qa.bisect(p, q, out=out),
+        "bezier": lambda out: qa.bezier(p, a, b, q, t, out=out),
+        "squad": lambda out: qa.squad(p, a, b, q, t, out=out),
+    }
+    for name, call in calls.items():
+        want = call(None)
+        out = np.matrix(np.zeros((1000, 4))) if kind == "matrix" else np.zeros((1000, 4)).view(_Sub)
+        assert call(out) is out, name
+        assert np.array_equal(np.asarray(out), want), name
+    # a strided subclass out (the copy-back path)
+    big = np.zeros((1000, 8)).view(_Sub)
+    qa.slerp(p, q, t, out=big[:, ::2])
+    assert np.array_equal(np.asarray(big)[:, ::2], qa.slerp(p, q, t))
+
+
+def test_spline_and_angular_velocity_refuse_bool_times(rng):
+    # issue 14.10: bool times gave numpy's "boolean subtract"
+    keys = qa.random(2, rng)
+    with pytest.raises(TypeError, match="Expected `times` to have a real"):
+        qa.spline(np.array([False, True]), keys, [0.5])
+    with pytest.raises(TypeError, match="Expected `new_times` to have a real"):
+        qa.spline([0.0, 1.0], keys, np.array([True]))
+    with pytest.raises(TypeError, match="Expected `times` to have a real"):
+        qa.angular_velocity(keys, np.array([False, True]))
+    with pytest.raises(TypeError, match="`times`.*masked"):
+        qa.spline(np.ma.masked_array([0.0, 1.0]), keys, [0.5])
+
+
+def test_angular_velocity_int64_nanoseconds_exact():
+    # issue 14.8: EuRoC stamps (ns since the epoch, 200 Hz); float64 stamps are 256 ns coarse
+    t = 1403636579763555584 + 5_000_000 * np.arange(400, dtype=np.int64)
+    t[1::3] += 137  # a little jitter, as real stamps have
+    omega = np.array([0.3, -0.5, 0.75])  # rad/s
+    q = qa.from_rotvec(np.outer((t - t[0]) * 1e-9, omega))
+    w = qa.angular_velocity(q, t) * 1e9
+    assert np.max(np.abs(w - omega)) < 1e-9
+    wb = qa.angular_velocity(q, t.astype(np.uint64), frame="body") * 1e9
+    assert np.max(np.abs(wb - omega)) < 1e-9  # a rotation about ω leaves ω fixed

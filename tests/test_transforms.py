@@ -621,3 +621,13 @@ def test_interpolate_sign_of_q_does_not_matter(rng):
     close(qa.distance(x.q, y.q), 0, 1e-7)
     p = rng.normal(size=(6, 3))
     close(x.apply(p), y.apply(p), 1e-9)
+
+
+def test_vqs_refuses_nan_scale_and_masked():
+    # issue 14.10: s = nan was accepted
+    for s in (np.nan, [1.0, np.nan]):
+        with pytest.raises(ValueError, match="Expected `s` to be positive"):
+            VQS(s=s)
+    with pytest.raises(TypeError, match="`v`.*masked"):
+        VQS(v=np.ma.masked_array(np.zeros(3)))
+    assert VQS(q=np.array([1, 0, 0, 0], ">f4")).q.dtype == np.float32
