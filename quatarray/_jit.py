@@ -22,16 +22,16 @@ Kernel layers
     The default for element functions: compiled once as its own function
     (an LLVM call from the loop that uses it), cached, and cheap to compile.
 ``inline``
-    Like ``element`` but inlined into every caller at numba-IR level. Use it
-    for small per-row math inside row loops that must vectorise (the
-    branch-free trigonometry of ``_trig`` and the element functions that
-    call it): a call that LLVM does not inline stops the loop vectoriser.
-    Not for large or branchy functions (the loop would not vectorise
-    anyway, and each caller compiles its own copy). Check the result
-    (``inspect_asm``: packed ``ymm`` arithmetic): several IR-inlined copies
-    in one large loop can keep their branches and stop the vectoriser, and
-    then an ``element`` wrapper, which LLVM inlines after forming selects,
-    does better (``euler.sincos``).
+    Like ``element`` (compiled once per signature, cached) but marked
+    ``alwaysinline`` for LLVM (numba's ``forceinline``), so every caller gets
+    it inlined before LLVM's loop vectoriser runs. Use it for the per-row
+    math inside row loops that must vectorise (the branch-free trigonometry
+    of ``_trig`` and the element functions that call it): a call that LLVM
+    does not inline stops the vectoriser. It gives the same SIMD code as
+    numba's IR-level ``inline="always"``, which re-runs numba's front end on
+    every callee at every call site, nested: that made the Bézier spline's
+    first call take over a minute to compile; with LLVM inlining it takes
+    seconds. Check the result (``inspect_asm``: packed ``ymm`` arithmetic).
 ``rowloop``
     A batched loop over the leading axis, written once with ``prange``;
     it is compiled as a serial and as a parallel dispatcher and the call
@@ -71,13 +71,13 @@ def element(fn):
 
 
 def inline(fn):
-    """An element function inlined into its callers at numba-IR level.
+    """An element function that LLVM always inlines into its callers.
 
-    A plain :func:`element` stays an LLVM call, which stops the loop
-    vectoriser; use this for the small per-row math of loops that must run
-    as SIMD (see the module docstring).
+    A plain :func:`element` may stay an LLVM call, which stops the loop
+    vectoriser; use this for the per-row math of loops that must run as SIMD
+    (see the module docstring).
     """
-    return numba.njit(inline="always", **_OPTIONS)(fn)
+    return numba.njit(forceinline=True, **_OPTIONS)(fn)
 
 
 class RowLoop:
