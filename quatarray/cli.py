@@ -8,9 +8,12 @@ wrong; a user error never prints a traceback.
 """
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 
 import numpy as np
 
@@ -689,6 +692,33 @@ def build_parser():
     return p
 
 
+class _Signalled(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is, as Ctrl-C raises KeyboardInterrupt:
+    the writers' ``with`` blocks remove their temporary files on the way out."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """Within: SIGTERM and SIGHUP raise :class:`_Signalled` (unless ignored, e.g. under nohup)."""
+    def handler(signum, frame):
+        raise _Signalled(signum)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():  # signal.signal works there only
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                previous[sig] = signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
 def main(argv=None):
     """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage).
 
@@ -723,7 +753,8 @@ def main(argv=None):
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _signals_interrupt():
+            return int(args.func(args) or 0)
     except UsageError as exc:
         print(f"quatarray {args.verb}: error: {exc}", file=sys.stderr)
         return 2
@@ -737,9 +768,13 @@ def main(argv=None):
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("quatarray: interrupted", file=sys.stderr)
-        return 130
+    except MemoryError:
+        print(f"quatarray {args.verb}: error: out of memory; try a smaller --chunk", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, _Signalled) else signal.SIGINT
+        print(f"quatarray: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -723,6 +723,10 @@ class _NpyTarget:
             if os.path.isdir(self.tmp) and os.path.lexists(self.dst):  # --force, for a store: moved aside first
                 old = self.tmp + ".old"
                 os.replace(self.dst, old)
+            if not os.path.isdir(self.tmp):  # mkstemp made it 0600
+                from .io.writers import output_mode
+
+                os.chmod(self.tmp, output_mode(self.dst))
             os.replace(self.tmp, self.dst)
         if old:
             self._remove(old)

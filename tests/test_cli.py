@@ -543,3 +543,90 @@ def test_bounded_memory_conversion(tmp_path):
     assert out.shape == (n, 3, 3)
     np.testing.assert_allclose(out[-1], rot([0.5, 0.5, 0.5, 0.5]).as_matrix(), atol=1e-15)
     np.testing.assert_allclose(out[7], rot([0, 0, 0, 1]).as_matrix(), atol=1e-15)
+
+
+# --------------------------------------------------------------------------
+# hardening (issue 14): permissions, signals, write errors
+
+
+def _leftovers(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+@pytest.mark.parametrize("ext", ["npy", "csv", "parquet", "txt"])
+def test_output_mode_is_0666_less_umask(capsys, tmp_path, ext):
+    t, pos, q = smooth_stream(np.random.default_rng(1), 20)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="")
+    out = tmp_path / f"o.{ext}"
+    old = os.umask(0o027)
+    try:
+        assert cli(capsys, "unflip", tmp_path / "s.csv", out)[0] == 0
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o640
+
+
+def test_force_keeps_the_mode_of_the_file_it_replaces(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(2), 10))
+    out = tmp_path / "o.csv"
+    out.write_text("old\n")
+    out.chmod(0o604)
+    assert cli(capsys, "convert", tmp_path / "q.npy", out, "--to", "quat", "--force")[0] == 0
+    assert out.stat().st_mode & 0o777 == 0o604 and out.read_text().startswith("qw,")
+
+
+def test_force_refuses_a_fifo(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(3), 10))
+    os.mkfifo(tmp_path / "o.csv")
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "o.csv", "--to", "quat", "--force")
+    assert rc == 2 and "not a regular file" in err and len(err.strip().splitlines()) == 1
+    assert (tmp_path / "o.csv").is_fifo()
+
+
+def test_parent_that_is_a_file(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(4), 10))
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "q.npy" / "o.csv", "--to", "quat")
+    assert rc == 2 and "is not a folder" in err and "does not exist" not in err
+
+
+def test_unwritable_destination_names_out(capsys, tmp_path, monkeypatch):
+    import tempfile
+
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(5), 10))
+
+    def refused(prefix, suffix, dir):
+        path = os.path.join(dir, prefix + "abc123" + suffix)
+        raise PermissionError(13, "Permission denied", path)
+
+    monkeypatch.setattr(tempfile, "mkstemp", refused)
+    out = tmp_path / "o.npy"
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", out, "--to", "quat")
+    assert rc == 2 and err.strip() == f"quatarray convert: error: {out}: cannot write the output: Permission denied"
+
+
+FSIZE = (
+    "import resource, signal, sys\n"
+    "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+    "lim = int(sys.argv[1])\n"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))\n"
+    "from quatarray.cli import main\n"
+    "sys.exit(main(sys.argv[2:]))\n"
+)
+
+
+@pytest.mark.parametrize("ext", ["csv", "npy"])
+def test_write_error_at_the_end_leaves_nothing(tmp_path, ext):
+    """A file-size limit one byte short of the output: the last write (the final flush) fails."""
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(6), 5000))
+    args = ["convert", tmp_path / "q.npy", tmp_path / f"full.{ext}", "--to", "quat", "--no-progress"]
+    assert run(*args).returncode == 0
+    size = (tmp_path / f"full.{ext}").stat().st_size
+    out = tmp_path / f"o.{ext}"
+    args[2] = out
+    res = subprocess.run([sys.executable, "-c", FSIZE, str(size - 1), *map(str, args)], capture_output=True,
+                         text=True, cwd=ROOT)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.strip().startswith(f"quatarray convert: error: {out}: cannot write the output: ")
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not out.exists() and _leftovers(tmp_path) == []
