@@ -157,7 +157,7 @@ def cmd_convert(args):
 
 
 class _RateTimes:
-    """New times t0 + k / rate, handed out interval by interval."""
+    """New times t0 + k / rate, handed out interval by interval, in pieces."""
 
     def __init__(self, rate):
         if not (rate > 0 and np.isfinite(rate)):
@@ -177,11 +177,27 @@ class _RateTimes:
             kb -= 1
         return kb
 
-    def upto(self, b, closed):
+    def _check_resolution(self, b):
+        """Refuse a step finer than float64 times near `b` can tell apart (they would repeat)."""
+        ulp = float(np.spacing(max(abs(self.t0), abs(b))))
+        if 1 / self.rate < 2 * ulp:
+            raise UsageError(
+                f"--rate {self.rate:g}: finer than the time resolution: times near {b:.6g} s are "
+                f"{ulp:.3g} s apart in float64, so new times would repeat; use at most {1 / (2 * ulp):.3g} Hz"
+            )
+
+    def count(self, b, closed):
+        """How many new times up to `b` are still to come."""
+        self._check_resolution(b)
+        return self.end(b, closed) - self.k
+
+    def pieces(self, b, closed, size):
+        """The new times up to `b`, at most `size` at a time."""
         kb = self.end(b, closed)
-        ks = np.arange(self.k, kb, dtype=np.float64)
-        self.k = kb
-        return self.t0 + ks / self.rate
+        while self.k < kb:
+            ks = np.arange(self.k, min(self.k + size, kb), dtype=np.float64)
+            self.k += ks.size
+            yield self.t0 + ks / self.rate
 
     def finish(self, last):
         pass
@@ -204,13 +220,24 @@ class _FileTimes:
         self.p = 0
         self.t0 = None
 
-    def upto(self, b, closed):
+    def _end(self, b, closed):
         if self.p == 0 and self.times[0] < self.t0:
             raise DataError(f"{self.name}: time {self.times[0]!r} is before the first key time {self.t0!r}")
-        j = int(np.searchsorted(self.times, b, side="right" if closed else "left"))
-        out = self.times[self.p:j]
-        self.p = max(self.p, j)
+        return max(self.p, int(np.searchsorted(self.times, b, side="right" if closed else "left")))
+
+    def count(self, b, closed):
+        return self._end(b, closed) - self.p
+
+    def upto(self, b, closed):
+        """All the new times up to `b` (a view of the file's times)."""
+        j = self._end(b, closed)
+        out, self.p = self.times[self.p:j], j
         return out
+
+    def pieces(self, b, closed, size):
+        out = self.upto(b, closed)
+        for a in range(0, out.size, size):
+            yield out[a:a + size]
 
     def finish(self, last):
         if self.p < self.times.size:
@@ -245,17 +272,22 @@ def cmd_resample(args):
     clean = Cleaner(reader, args.on_invalid, ordered=True)
 
     def emit(w, keys, lo, hi, closed):
-        nt = newt.upto(keys.t[hi], closed)
-        if nt.size == 0:
-            return
-        try:
-            q = qa.spline(keys.t, keys.data, nt, method=args.method)
-        except ValueError as exc:
-            raise _lib_error(args.IN, exc) from None
-        pos = None
-        if keys.pos is not None:
-            pos = np.column_stack([np.interp(nt, keys.t, keys.pos[:, k]) for k in range(3)])
-        w.write(q, nt if reader.has_time or args.in_rate else None, pos)
+        # The new times of keys[lo:hi] come and are written at most --chunk at a time, each
+        # piece from the keys around it (two of halo each side, as for the intervals below):
+        # memory stays bounded whatever the rate.
+        w.reserve(newt.count(keys.t[hi], closed))
+        for nt in newt.pieces(keys.t[hi], closed, args.chunk):
+            a = max(int(np.searchsorted(keys.t, nt[0], side="right")) - 3, 0)
+            b = min(int(np.searchsorted(keys.t, nt[-1], side="left")) + 3, len(keys))
+            near = keys.slice(a, b)
+            try:
+                q = qa.spline(near.t, near.data, nt, method=args.method)
+            except ValueError as exc:
+                raise _lib_error(args.IN, exc) from None
+            pos = None
+            if near.pos is not None:
+                pos = np.column_stack([np.interp(nt, near.t, near.pos[:, k]) for k in range(3)])
+            w.write(q, nt if reader.has_time or args.in_rate else None, pos)
 
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:

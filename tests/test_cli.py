@@ -630,3 +630,57 @@ def test_write_error_at_the_end_leaves_nothing(tmp_path, ext):
     assert res.stderr.strip().startswith(f"quatarray convert: error: {out}: cannot write the output: ")
     assert len(res.stderr.strip().splitlines()) == 1
     assert not out.exists() and _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("method", ["bezier", "squad"])
+def test_resample_in_pieces_is_the_same(capsys, tmp_path, method):
+    """New times written --chunk at a time, each piece from the keys around it: the same
+    samples as in one piece."""
+    t, pos, q = smooth_stream(np.random.default_rng(7), 40)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="")
+    for chunk in (7, 100000):
+        rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / f"r{chunk}.npy", "--rate", 97,
+                         "--method", method, "--chunk", chunk)
+        assert rc == 0, err
+    np.testing.assert_array_equal(np.load(tmp_path / "r7.npy"), np.load(tmp_path / "r100000.npy"))
+
+
+@pytest.mark.slow
+def test_bounded_memory_resample_to_a_high_rate(tmp_path):
+    """20 keys at 1 Hz to 2·10⁵ Hz: 3.8·10⁶ new rows (116 MiB out) with a few MiB above the
+    interpreter's own footprint: the new times are made and evaluated --chunk at a time."""
+    np.save(tmp_path / "k.npy", unit(np.random.default_rng(8), 20))
+    base = _peak_kib("resample", tmp_path / "k.npy", tmp_path / "b.npy", "--in-rate", 1, "--rate", 10)
+    peak = _peak_kib("resample", tmp_path / "k.npy", tmp_path / "o.npy", "--in-rate", 1, "--rate", 2e5,
+                     "--chunk", 65536)
+    grown = (peak - base) / 1024
+    assert grown < 40, f"peak RSS grew by {grown:.0f} MiB over the {base / 1024:.0f} MiB baseline"
+    assert np.load(tmp_path / "o.npy", mmap_mode="r").shape == (19 * 200000 + 1, 4)
+
+
+@pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGHUP", 129), ("SIGINT", 130)])
+def test_signals_leave_nothing_behind(tmp_path, sig, code):
+    import signal
+    import time
+
+    np.save(tmp_path / "k.npy", unit(np.random.default_rng(9), 20))
+    out = tmp_path / "o.npy"
+    # SIGINT's default (KeyboardInterrupt) only where it is not ignored, as it is under `cmd &`
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "quatarray", "resample", str(tmp_path / "k.npy"), str(out), "--in-rate", "1",
+         "--rate", "1e7", "--chunk", "10000", "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.stat().st_size > 1 << 20 for p in tmp_path.glob(".o.npy.*")):
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+            time.sleep(0.02)
+        proc.send_signal(getattr(signal, sig))
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == code, err
+    assert err.strip() == f"quatarray: interrupted ({sig})"
+    assert not out.exists() and _leftovers(tmp_path) == []
