@@ -61,6 +61,17 @@ def _lib_error(name, exc):
 # convert
 
 
+def _euler_seq(seq, option, example):
+    """`seq` if it is an Euler sequence, else a UsageError naming `option`."""
+    if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
+            and seq[0] != seq[1] and seq[1] != seq[2]):
+        raise UsageError(
+            f"{option}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
+            f"no axis twice in a row, e.g. {example}"
+        )
+    return seq
+
+
 def _target(to, degrees):
     """(fields, npy core shape, function) for ``--to``; the function maps (n, 4) unit
     quaternions to the target and takes an optional ``out=`` array of its result shape."""
@@ -93,13 +104,7 @@ def _target(to, degrees):
 
         return ["ax", "ay", "az", "angle"], (4,), axis_angle
     if to.startswith("euler:"):
-        seq = to[6:]
-        if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
-                and seq[0] != seq[1] and seq[1] != seq[2]):
-            raise UsageError(
-                f"--to {to}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
-                "no axis twice in a row, e.g. euler:ZXY"
-            )
+        seq = _euler_seq(to[6:], f"--to {to}", "euler:ZXY")
 
         from .euler import euler_locked
 
@@ -605,6 +610,8 @@ def cmd_bench(args):
 
 def cmd_plot(args):
     mod = _optional("plot", "plot")
+    if args.seq is not None:
+        _euler_seq(args.seq, f"--seq {args.seq}", "--seq ZXY")
     check_output(args.OUT, [args.IN] + ([args.after] if args.after else []), args.force)
     extra = {k: v for k, v in (("after", args.after), ("seq", args.seq)) if v is not None}
     return int(

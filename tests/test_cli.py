@@ -684,3 +684,54 @@ def test_signals_leave_nothing_behind(tmp_path, sig, code):
     assert proc.returncode == code, err
     assert err.strip() == f"quatarray: interrupted ({sig})"
     assert not out.exists() and _leftovers(tmp_path) == []
+
+
+def test_float16_npy_is_read_as_float32(capsys, tmp_path):
+    q = unit(np.random.default_rng(10), 30)
+    np.save(tmp_path / "h.npy", q.astype(np.float16))
+    rc, _, err = cli(capsys, "convert", tmp_path / "h.npy", tmp_path / "o.npy", "--to", "matrix")
+    assert rc == 0, err
+    out = np.load(tmp_path / "o.npy")
+    assert out.dtype == np.float32
+    np.testing.assert_allclose(out, rot(q.astype(np.float16).astype(np.float64)).as_matrix(), atol=1e-6)
+    rc, out, _ = cli(capsys, "info", tmp_path / "h.npy")
+    assert rc == 0 and "float32" in out
+
+
+def test_plot_refuses_a_bad_seq(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(11), 10))
+    rc, _, err = cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.png", "--seq", "ABC")
+    assert rc == 2 and err.startswith("quatarray plot: error: --seq ABC: SEQ is three axes")
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "p.png").exists()
+
+
+def test_resample_beyond_the_disk_is_one_line(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(12), 20))
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", tmp_path / "r.npy", "--in-rate", 1, "--rate", 1e12)
+    assert rc == 2 and "free on its disk" in err and len(err.strip().splitlines()) == 1
+    assert _leftovers(tmp_path) == [] and not (tmp_path / "r.npy").exists()
+
+
+def test_memory_error_is_one_line(capsys, tmp_path, monkeypatch):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(13), 20))
+
+    def no_memory(*a, **kw):
+        raise MemoryError("Unable to allocate 267. GiB for an array with shape (35800000000000,)")
+
+    monkeypatch.setattr(qa, "as_matrix", no_memory)
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "o.npy", "--to", "matrix")
+    assert rc == 2 and err.strip() == "quatarray convert: error: out of memory; try a smaller --chunk"
+    assert _leftovers(tmp_path) == []
+
+
+def test_rate_finer_than_the_time_resolution(capsys, tmp_path):
+    t = 1.3e9 + np.arange(20) * 0.01  # epoch seconds: float64 steps of 2.4e-7 s
+    q = unit(np.random.default_rng(14), 20)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, q]), delimiter=",", header="t,qw,qx,qy,qz",
+               comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "r.csv", "--rate", 1e9)
+    assert rc == 2 and "finer than the time resolution" in err and len(err.strip().splitlines()) == 1
+    assert _leftovers(tmp_path) == [] and not (tmp_path / "r.csv").exists()
+    assert cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "r.csv", "--rate", 1e5)[0] == 0
+    assert (np.diff(np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1)[:, 0]) > 0).all()

@@ -152,6 +152,16 @@ def array_layout(name, kind, layout, shape, dtype):
     raise DataError(f"{name}: expected vectors of shape (N, 3), got {shape}")
 
 
+def _kernel_dtype(dtype):
+    """The float type the kernels take for an array of `dtype`: float32 for float16, native
+    float32/float64 as they are, float64 for the rest (integers, long double)."""
+    if dtype.kind == "f" and dtype.itemsize <= 4:
+        return np.dtype(np.float32)
+    if dtype.kind == "f" and dtype.itemsize == 8:
+        return dtype.newbyteorder("=")
+    return np.dtype(np.float64)
+
+
 class NpyReader(Reader):
     """A ``.npy`` array read one memory-mapped chunk at a time.
 
@@ -197,8 +207,8 @@ class NpyReader(Reader):
         with only those rows' pages mapped. Matrices become quaternions; one
         that is not a rotation raises, or becomes a nan row with `bad_ok`."""
         block = self._block(a, b)
-        if self.dtype.kind != "f" or not self.dtype.isnative:
-            block = block.astype(np.float64 if self.dtype.kind != "f" else self.dtype.newbyteorder("="))
+        if self.dtype.kind != "f" or not self.dtype.isnative or self.dtype.itemsize not in (4, 8):
+            block = block.astype(_kernel_dtype(self.dtype))
         if self.core == (3, 3):
             return Chunk(_from_matrix(block, self, a, bad_ok), row0=a)
         if self.kind == "quat":
