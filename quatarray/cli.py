@@ -724,7 +724,7 @@ def build_parser():
 
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")
-    s.add_argument("OUT", metavar="OUT.png")
+    s.add_argument("OUT", metavar="OUT.png", help="the image; its extension names the format (.png, .pdf, .svg …)")
     s.add_argument("--after", metavar="FILE", help="a second stream (e.g. resampled) drawn over IN")
     s.add_argument("--seq", metavar="SEQ", help="Euler sequence of the angle panel (default: the BVH's own, else ZYX)")
     s.set_defaults(func=cmd_plot)

@@ -735,3 +735,35 @@ def test_rate_finer_than_the_time_resolution(capsys, tmp_path):
     assert _leftovers(tmp_path) == [] and not (tmp_path / "r.csv").exists()
     assert cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "r.csv", "--rate", 1e5)[0] == 0
     assert (np.diff(np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1)[:, 0]) > 0).all()
+
+
+@pytest.mark.parametrize("ext, magic", [("pdf", b"%PDF"), ("svg", b"<?xml"), ("jpg", b"\xff\xd8"),
+                                        ("png", b"\x89PNG")])
+def test_plot_writes_the_format_its_extension_names(capsys, tmp_path, ext, magic):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(15), 10))
+    out = tmp_path / f"p.{ext}"
+    old = os.umask(0o022)
+    try:
+        assert cli(capsys, "plot", tmp_path / "q.npy", out)[0] == 0
+    finally:
+        os.umask(old)
+    assert out.read_bytes().startswith(magic) and out.stat().st_mode & 0o777 == 0o644
+    assert _leftovers(tmp_path) == []
+
+
+def test_plot_refuses_an_unknown_extension(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(16), 10))
+    rc, _, err = cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.xyz")
+    assert rc == 2 and "cannot tell the image format from the extension '.xyz'" in err and ".pdf" in err
+    assert not (tmp_path / "p.xyz").exists() and _leftovers(tmp_path) == []
+
+
+def test_plot_speed_per_row_without_times(capsys, tmp_path):
+    matplotlib = pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(17), 10))
+    with matplotlib.rc_context({"svg.fonttype": "none"}):  # text kept as text
+        assert cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.svg")[0] == 0
+    svg = (tmp_path / "p.svg").read_text()
+    assert "angular speed (deg/row)" in svg and "deg/s" not in svg
