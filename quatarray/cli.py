@@ -52,6 +52,11 @@ def _no_rows(name):
     return DataError(f"{name}: no valid rows left")
 
 
+def _num(x):
+    """A number as messages show it: plain and exact (``1311868164.5``, not ``np.float64(…)``)."""
+    return repr(float(x))
+
+
 def _lib_error(name, exc):
     """A library ValueError on file data → a one-line DataError."""
     return DataError(f"{name}: {str(exc).splitlines()[0]}")
@@ -213,21 +218,25 @@ class _FileTimes:
 
     def __init__(self, path, fmt):
         self.name = path
-        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto"), dtype=np.float64)
+        times, self.where = read_times(path, fmt if fmt in ("npy", "csv") else "auto", locate=True)
+        self.times = np.asarray(times, dtype=np.float64)
         if self.times.size == 0:
             raise DataError(f"{path}: no times")
         if not np.isfinite(self.times).all():
-            raise DataError(f"{path}: row {int(np.argmin(np.isfinite(self.times)))}: time is not finite")
+            i = int(np.argmin(np.isfinite(self.times)))
+            raise DataError(f"{self.where(i)}: time {_num(self.times[i])} is not finite")
         d = np.diff(self.times)
         if (d < 0).any():
             i = int(np.argmax(d < 0)) + 1
-            raise DataError(f"{path}: row {i}: times must not decrease ({self.times[i]!r} after {self.times[i - 1]!r})")
+            raise DataError(f"{self.where(i)}: times must not decrease "
+                            f"({_num(self.times[i])} after {_num(self.times[i - 1])})")
         self.p = 0
         self.t0 = None
 
     def _end(self, b, closed):
         if self.p == 0 and self.times[0] < self.t0:
-            raise DataError(f"{self.name}: time {self.times[0]!r} is before the first key time {self.t0!r}")
+            raise DataError(f"{self.where(0)}: time {_num(self.times[0])} is before the first key time "
+                            f"{_num(self.t0)}")
         return max(self.p, int(np.searchsorted(self.times, b, side="right" if closed else "left")))
 
     def count(self, b, closed):
@@ -246,9 +255,8 @@ class _FileTimes:
 
     def finish(self, last):
         if self.p < self.times.size:
-            raise DataError(
-                f"{self.name}: row {self.p}: time {self.times[self.p]!r} is after the last key time {last!r}"
-            )
+            raise DataError(f"{self.where(self.p)}: time {_num(self.times[self.p])} is after the last key time "
+                            f"{_num(last)}")
 
 
 def timed_chunks(reader, in_rate):
@@ -564,7 +572,7 @@ def cmd_info(args):
     if reader.has_time and t_first is not None:
         span = float(t_last - t_first)
         rate = (ok - 1) / span if span > 0 else float("nan")
-        lines.append(("time", f"{float(t_first)!r} .. {float(t_last)!r} s (span {span:.6g} s)"))
+        lines.append(("time", f"{_num(t_first)} .. {_num(t_last)} s (span {span:.6g} s)"))
         lines.append(("rate", f"{rate:.6g} Hz mean; step min {dt_min:.6g} s, max {dt_max:.6g} s"
                       + (f"; {back} steps not increasing" if back else "; strictly increasing")))
     else:

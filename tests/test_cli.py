@@ -767,3 +767,29 @@ def test_plot_speed_per_row_without_times(capsys, tmp_path):
         assert cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.svg")[0] == 0
     svg = (tmp_path / "p.svg").read_text()
     assert "angular speed (deg/row)" in svg and "deg/s" not in svg
+
+
+def test_resample_times_messages_are_plain_and_by_line(capsys, tmp_path):
+    t = 1311868164.0 + np.arange(10) * 0.1
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, unit(np.random.default_rng(18), 10)]), delimiter=",",
+               header="t,qw,qx,qy,qz", comments="", fmt="%.17g")
+    cases = {
+        "back.txt": ("# new times\n1311868164.5\n1311868164.25\n", "back.txt:3: times must not decrease "
+                     "(1311868164.25 after 1311868164.5)"),
+        "late.txt": ("1311868164.5\n\n1311868200.5\n", "late.txt:3: time 1311868200.5 is after the last key time "
+                     "1311868164.9"),
+        "early.txt": ("# t\n1311868163.5\n", "early.txt:2: time 1311868163.5 is before the first key time "
+                      "1311868164.0"),
+    }
+    for name, (text, want) in cases.items():
+        (tmp_path / name).write_text(text)
+        rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "o.csv", "--times", tmp_path / name)
+        assert rc == 1 and err.strip() == f"{tmp_path / name}:{want.split(':', 1)[1]}", err
+        assert "np.float64" not in err
+
+
+def test_resample_times_garbage_npy(capsys, stream, tmp_path):
+    path = stream[0]
+    (tmp_path / "g.npy").write_bytes(b"garbage" * 10)
+    rc, _, err = cli(capsys, "resample", path, tmp_path / "o.npy", "--times", tmp_path / "g.npy")
+    assert rc == 1 and "not a valid .npy float array" in err and "pickle" not in err

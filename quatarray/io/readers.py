@@ -804,41 +804,69 @@ def _parse_num(s, typ, name, lineno, what):
 # times for `resample --times`
 
 
-def read_times(path, fmt="auto", name=None):
+def read_times(path, fmt="auto", name=None, locate=False):
     r"""A 1-D float64 array of times from a file.
 
-    ``.npy``: a 1-D array (or (N, 1)). Text: one number a line, or any stream
-    file with a time column (csv/tum/euroc/parquet/bvh), whose times are used.
+    ``.npy``: a 1-D float (or integer) array (or (N, 1)). Text: one number a
+    line, or any stream file with a time column (csv/tum/euroc/parquet/bvh),
+    whose times are used.
+
+    Parameters
+    ----------
+    path : str
+    fmt : str, optional
+        As for :func:`open_stream` (default: by extension and contents).
+    name : str, optional
+        How messages name the file (default `path`).
+    locate : bool, optional
+        Also return ``where(i)``, the place of time ``i`` for a message
+        (``"times.txt:12"``, 1-based lines; ``"t.npy: row 11"`` in an array).
 
     Examples
     --------
     >>> import os, tempfile
     >>> from quatarray import io
     >>> path = os.path.join(tempfile.mkdtemp(), "times.txt")
-    >>> _ = open(path, "w").write("0.0\n0.25\n0.5\n")
+    >>> _ = open(path, "w").write("# s\n0.0\n0.25\n0.5\n")
     >>> io.read_times(path)
     array([0.  , 0.25, 0.5 ])
+    >>> io.read_times(path, locate=True)[1](1) == f"{path}:3"
+    True
     """
     path = os.fspath(path)
     name = name or path
+    times, where = _read_times(path, fmt, name)
+    return (times, where) if locate else times
+
+
+def _read_times(path, fmt, name):
     if not os.path.exists(path):
         raise UsageError(f"{name}: no such file")
     if (fmt == "auto" and F.by_extension(path) == "npy") or fmt == "npy":
+        bad = f"{name}: not a valid .npy float array"
         try:
-            a = np.load(path, mmap_mode="r")
+            with open(path, "rb") as f:
+                np.lib.format.read_magic(f)
+        except (ValueError, OSError, EOFError):
+            raise DataError(f"{bad} (no .npy header)") from None
+        try:
+            a = np.load(path, mmap_mode="r", allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
-            raise DataError(f"{name}: not a valid .npy file ({exc})") from None
+            why = "it holds Python objects" if "pickle" in str(exc) or "object" in str(exc) else str(exc)
+            raise DataError(f"{bad} ({why})") from None
+        if a.dtype.kind not in "fiu" or a.dtype.fields is not None:
+            raise DataError(f"{bad} (dtype {a.dtype})")
         if a.ndim == 2 and a.shape[1] == 1:
             a = a[:, 0]
         if a.ndim != 1:
             raise DataError(f"{name}: expected a 1-D array of times, got shape {a.shape}")
-        return a
+        return a, lambda i: f"{name}: row {i}"
     if F.by_extension(path) is None and fmt in ("auto", "csv"):
         with open(path, "rb") as f:
             first = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith(b"#")), b"")
         fields = first.replace(b",", b" ").split()
         if len(fields) == 1:
-            out = []
+            out, lines = [], []
             with open(path, "r", encoding="utf-8", errors="replace") as f:
                 for lineno, line in enumerate(f, 1):
                     s = line.strip()
@@ -848,10 +876,11 @@ def read_times(path, fmt="auto", name=None):
                         out.append(float(s))
                     except ValueError:
                         raise DataError(f"{name}:{lineno}: not a number: {s!r}") from None
+                    lines.append(lineno)
             if not out:
                 raise F.empty(name)
-            return np.array(out)
+            return np.array(out), lambda i: f"{name}:{lines[i]}"
     reader = open_stream(path, fmt, name=name)
     if not reader.has_time:
         raise DataError(f"{name}: has no time column")
-    return np.concatenate([ch.t for ch in reader])
+    return np.concatenate([ch.t for ch in reader]), reader.where
