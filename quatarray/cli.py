@@ -19,7 +19,7 @@ import numpy as np
 
 from .io import (
     DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
-    read_times, rechunk,
+    output_format, read_times, rechunk,
 )
 from .io.formats import FORMATS
 
@@ -139,6 +139,9 @@ def cmd_convert(args):
                           layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
                           on_invalid=args.on_invalid, force=args.force)
     fields, core, fn = _target(args.to, args.degrees)
+    if args.to != "quat" and output_format(args.OUT) == "tum":
+        raise UsageError(f"{args.OUT}: a TUM output holds quaternions only (written qx qy qz qw); --to {args.to} "
+                         "cannot go in it: use --to quat, or a .csv, .parquet or .npy output")
     reader = _open(args, args.IN)
     check_output(args.OUT, [args.IN], args.force)
     clean = Cleaner(reader, args.on_invalid)
@@ -571,10 +574,13 @@ def cmd_info(args):
         lines.append(("joint", f"{reader.joint} (joints: {others}; choose with --joint)"))
     if reader.has_time and t_first is not None:
         span = float(t_last - t_first)
-        rate = (ok - 1) / span if span > 0 else float("nan")
         lines.append(("time", f"{_num(t_first)} .. {_num(t_last)} s (span {span:.6g} s)"))
-        lines.append(("rate", f"{rate:.6g} Hz mean; step min {dt_min:.6g} s, max {dt_max:.6g} s"
-                      + (f"; {back} steps not increasing" if back else "; strictly increasing")))
+        if not np.isfinite(dt_min):  # no step: a single timed row
+            lines.append(("rate", "- (one row)"))
+        else:
+            mean = f"{(ok - 1) / span:.6g} Hz mean" if span > 0 else "- (no time elapses)"
+            lines.append(("rate", f"{mean}; step min {dt_min:.6g} s, max {dt_max:.6g} s"
+                          + (f"; {back} steps not increasing" if back else "; strictly increasing")))
     else:
         lines.append(("time", "none (no time column)"))
     lines.append(("position", "x y z" if reader.has_pos else "none"))

@@ -793,3 +793,42 @@ def test_resample_times_garbage_npy(capsys, stream, tmp_path):
     (tmp_path / "g.npy").write_bytes(b"garbage" * 10)
     rc, _, err = cli(capsys, "resample", path, tmp_path / "o.npy", "--times", tmp_path / "g.npy")
     assert rc == 1 and "not a valid .npy float array" in err and "pickle" not in err
+
+
+def test_info_one_row(capsys, tmp_path):
+    (tmp_path / "one.csv").write_text("t,qw,qx,qy,qz\n0.5,1,0,0,0\n")
+    rc, out, _ = cli(capsys, "info", tmp_path / "one.csv")
+    assert rc == 0 and "rate:" in out
+    rate = next(ln for ln in out.splitlines() if ln.startswith("rate:"))
+    assert rate.split(":", 1)[1].strip() == "- (one row)"
+    body = out.split("\n", 1)[1]  # after the file line (its path may hold "inf")
+    assert "nan" not in body and "inf" not in body
+
+
+def test_tum_output(capsys, tmp_path):
+    t, pos, q = smooth_stream(np.random.default_rng(19), 30)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "unflip", tmp_path / "s.csv", tmp_path / "o.tum")
+    assert rc == 0, err
+    lines = (tmp_path / "o.tum").read_text().splitlines()
+    assert lines[0] == "# timestamp tx ty tz qx qy qz qw" and len(lines) == 31
+    got = np.loadtxt(tmp_path / "o.tum")
+    np.testing.assert_array_equal(got[:, 0], t)
+    np.testing.assert_allclose(got[:, 1:4], pos)
+    assert same_rotation(got[:, [7, 4, 5, 6]], q / np.linalg.norm(q, axis=1)[:, None])
+    # and it reads back as a TUM stream
+    rc, out, _ = cli(capsys, "info", tmp_path / "o.tum")
+    assert rc == 0 and "tum" in out
+
+
+def test_tum_output_refusals_say_what_is_wrong(capsys, tmp_path):
+    t, pos, q = smooth_stream(np.random.default_rng(20), 10)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "convert", tmp_path / "s.csv", tmp_path / "o.tum", "--to", "xyzw")
+    assert rc == 2 and "holds quaternions only" in err and "--to xyzw" in err and "--to quat" in err
+    np.save(tmp_path / "q.npy", q)  # no times, no positions
+    rc, _, err = cli(capsys, "unflip", tmp_path / "q.npy", tmp_path / "o.tum")
+    assert rc == 2 and "needs times and positions; this stream has no times and no positions" in err
+    assert _leftovers(tmp_path) == []

@@ -108,8 +108,12 @@ def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
     if fmt == "parquet":
         return ParquetWriter(path, cols)
     if fmt == "tum":
-        if not (time and pos and list(fields) == ["qw", "qx", "qy", "qz"]):
-            raise UsageError(f"{path}: a TUM (.txt) output needs times, positions and quaternions")
+        if list(fields) != ["qw", "qx", "qy", "qz"]:
+            raise UsageError(f"{path}: a TUM output holds quaternions only (it has no columns {' '.join(fields)})")
+        missing = [what for what, have in (("times", time), ("positions", pos)) if not have]
+        if missing:
+            raise UsageError(f"{path}: a TUM output (timestamp tx ty tz qx qy qz qw) needs times and "
+                             f"positions; this stream has no {' and no '.join(missing)}")
         return TumWriter(path, cols)
     raise UsageError(f"{path}: cannot write format {fmt!r}")
 
