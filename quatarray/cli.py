@@ -2,7 +2,9 @@
 
 Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
 stays bounded whatever the file size; reading and writing live in
-:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage.
+:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage (an
+output that cannot be written, or no memory, included), 128 + N when stopped
+by signal N (SIGINT, SIGTERM, SIGHUP: the temporary output is removed).
 Errors are one line on stderr naming the file, the line or row and what is
 wrong; a user error never prints a traceback.
 """
@@ -677,7 +679,8 @@ def build_parser():
     p = argparse.ArgumentParser(
         prog="quatarray",
         description="Batch processing of large rotation streams: convert, clean, resample, rotate, compose.",
-        epilog="Quaternions are (w, x, y, z). Exit status: 0 ok, 1 bad data, 2 bad usage. "
+        epilog="Quaternions are (w, x, y, z). Exit status: 0 ok, 1 bad data, 2 bad usage or unwritable output, "
+               "128 + N on signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). "
                "Formats: npy, csv (named columns t, x y z, qw qx qy qz), tum, euroc, kitti, parquet, bvh.",
     )
     from . import __version__
@@ -773,7 +776,7 @@ def _signals_interrupt():
 
 
 def main(argv=None):
-    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage).
+    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage, 128 + N on signal N).
 
     Parameters
     ----------
