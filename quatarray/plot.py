@@ -186,7 +186,8 @@ def image_format(path):
     known = FigureCanvasAgg(Figure()).get_supported_filetypes()
     ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
     if ext not in known:
-        raise UsageError(f"{path}: cannot tell the image format from the extension {'.' + ext if ext else '(none)'!r}; "
+        named = repr("." + ext) if ext else "(none)"
+        raise UsageError(f"{path}: cannot tell the image format from the extension {named}; "
                          f"use one of {', '.join('.' + k for k in sorted(known))}")
     return ext
 
