@@ -2,21 +2,26 @@
 
 Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
 stays bounded whatever the file size; reading and writing live in
-:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage.
+:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage (an
+output that cannot be written, or no memory, included), 128 + N when stopped
+by signal N (SIGINT, SIGTERM, SIGHUP: the temporary output is removed).
 Errors are one line on stderr naming the file, the line or row and what is
 wrong; a user error never prints a traceback.
 """
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 
 import numpy as np
 
 from .io import (
     DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
-    read_times, rechunk,
+    output_format, read_times, rechunk,
 )
 from .io.formats import FORMATS
 
@@ -49,6 +54,11 @@ def _no_rows(name):
     return DataError(f"{name}: no valid rows left")
 
 
+def _num(x):
+    """A number as messages show it: plain and exact (``1311868164.5``, not ``np.float64(…)``)."""
+    return repr(float(x))
+
+
 def _lib_error(name, exc):
     """A library ValueError on file data → a one-line DataError."""
     return DataError(f"{name}: {str(exc).splitlines()[0]}")
@@ -56,6 +66,17 @@ def _lib_error(name, exc):
 
 # --------------------------------------------------------------------------
 # convert
+
+
+def _euler_seq(seq, option, example):
+    """`seq` if it is an Euler sequence, else a UsageError naming `option`."""
+    if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
+            and seq[0] != seq[1] and seq[1] != seq[2]):
+        raise UsageError(
+            f"{option}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
+            f"no axis twice in a row, e.g. {example}"
+        )
+    return seq
 
 
 def _target(to, degrees):
@@ -90,13 +111,7 @@ def _target(to, degrees):
 
         return ["ax", "ay", "az", "angle"], (4,), axis_angle
     if to.startswith("euler:"):
-        seq = to[6:]
-        if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
-                and seq[0] != seq[1] and seq[1] != seq[2]):
-            raise UsageError(
-                f"--to {to}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
-                "no axis twice in a row, e.g. euler:ZXY"
-            )
+        seq = _euler_seq(to[6:], f"--to {to}", "euler:ZXY")
 
         from .euler import euler_locked
 
@@ -126,6 +141,9 @@ def cmd_convert(args):
                           layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
                           on_invalid=args.on_invalid, force=args.force)
     fields, core, fn = _target(args.to, args.degrees)
+    if args.to != "quat" and output_format(args.OUT) == "tum":
+        raise UsageError(f"{args.OUT}: a TUM output holds quaternions only (written qx qy qz qw); --to {args.to} "
+                         "cannot go in it: use --to quat, or a .csv, .parquet or .npy output")
     reader = _open(args, args.IN)
     check_output(args.OUT, [args.IN], args.force)
     clean = Cleaner(reader, args.on_invalid)
@@ -154,7 +172,7 @@ def cmd_convert(args):
 
 
 class _RateTimes:
-    """New times t0 + k / rate, handed out interval by interval."""
+    """New times t0 + k / rate, handed out interval by interval, in pieces."""
 
     def __init__(self, rate):
         if not (rate > 0 and np.isfinite(rate)):
@@ -174,11 +192,27 @@ class _RateTimes:
             kb -= 1
         return kb
 
-    def upto(self, b, closed):
+    def _check_resolution(self, b):
+        """Refuse a step finer than float64 times near `b` can tell apart (they would repeat)."""
+        ulp = float(np.spacing(max(abs(self.t0), abs(b))))
+        if 1 / self.rate < 2 * ulp:
+            raise UsageError(
+                f"--rate {self.rate:g}: finer than the time resolution: times near {b:.6g} s are "
+                f"{ulp:.3g} s apart in float64, so new times would repeat; use at most {1 / (2 * ulp):.3g} Hz"
+            )
+
+    def count(self, b, closed):
+        """How many new times up to `b` are still to come."""
+        self._check_resolution(b)
+        return self.end(b, closed) - self.k
+
+    def pieces(self, b, closed, size):
+        """The new times up to `b`, at most `size` at a time."""
         kb = self.end(b, closed)
-        ks = np.arange(self.k, kb, dtype=np.float64)
-        self.k = kb
-        return self.t0 + ks / self.rate
+        while self.k < kb:
+            ks = np.arange(self.k, min(self.k + size, kb), dtype=np.float64)
+            self.k += ks.size
+            yield self.t0 + ks / self.rate
 
     def finish(self, last):
         pass
@@ -190,26 +224,37 @@ class _FileTimes:
 
     def __init__(self, path, fmt, order="non-decreasing"):
         self.name = path
-        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order),
-                                dtype=np.float64)
+        times, self.where = read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order, locate=True)
+        self.times = np.asarray(times, dtype=np.float64)
         if self.times.size == 0:
             raise DataError(f"{path}: no times")
         self.p = 0
         self.t0 = None
 
-    def upto(self, b, closed):
+    def _end(self, b, closed):
         if self.p == 0 and self.times[0] < self.t0:
-            raise DataError(f"{self.name}: time {self.times[0]!r} is before the first key time {self.t0!r}")
-        j = int(np.searchsorted(self.times, b, side="right" if closed else "left"))
-        out = self.times[self.p:j]
-        self.p = max(self.p, j)
+            raise DataError(f"{self.where(0)}: time {_num(self.times[0])} is before the first key time "
+                            f"{_num(self.t0)}")
+        return max(self.p, int(np.searchsorted(self.times, b, side="right" if closed else "left")))
+
+    def count(self, b, closed):
+        return self._end(b, closed) - self.p
+
+    def upto(self, b, closed):
+        """All the new times up to `b` (a view of the file's times)."""
+        j = self._end(b, closed)
+        out, self.p = self.times[self.p:j], j
         return out
+
+    def pieces(self, b, closed, size):
+        out = self.upto(b, closed)
+        for a in range(0, out.size, size):
+            yield out[a:a + size]
 
     def finish(self, last):
         if self.p < self.times.size:
-            raise DataError(
-                f"{self.name}: row {self.p}: time {self.times[self.p]!r} is after the last key time {last!r}"
-            )
+            raise DataError(f"{self.where(self.p)}: time {_num(self.times[self.p])} is after the last key time "
+                            f"{_num(last)}")
 
 
 def timed_chunks(reader, in_rate, in_times=None):
@@ -262,17 +307,22 @@ def cmd_resample(args):
     clean = Cleaner(reader, args.on_invalid, ordered=True)
 
     def emit(w, keys, lo, hi, closed):
-        nt = newt.upto(keys.t[hi], closed)
-        if nt.size == 0:
-            return
-        try:
-            q = qa.spline(keys.t, keys.data, nt, method=args.method)
-        except ValueError as exc:
-            raise _lib_error(args.IN, exc) from None
-        pos = None
-        if keys.pos is not None:
-            pos = np.column_stack([np.interp(nt, keys.t, keys.pos[:, k]) for k in range(3)])
-        w.write(q, nt if reader.has_time or keyed else None, pos)
+        # The new times of keys[lo:hi] come and are written at most --chunk at a time, each
+        # piece from the keys around it (two of halo each side, as for the intervals below):
+        # memory stays bounded whatever the rate.
+        w.reserve(newt.count(keys.t[hi], closed))
+        for nt in newt.pieces(keys.t[hi], closed, args.chunk):
+            a = max(int(np.searchsorted(keys.t, nt[0], side="right")) - 3, 0)
+            b = min(int(np.searchsorted(keys.t, nt[-1], side="left")) + 3, len(keys))
+            near = keys.slice(a, b)
+            try:
+                q = qa.spline(near.t, near.data, nt, method=args.method)
+            except ValueError as exc:
+                raise _lib_error(args.IN, exc) from None
+            pos = None
+            if near.pos is not None:
+                pos = np.column_stack([np.interp(nt, near.t, near.pos[:, k]) for k in range(3)])
+            w.write(q, nt if reader.has_time or keyed else None, pos)
 
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:
@@ -543,10 +593,13 @@ def cmd_info(args):
         lines.append(("joint", f"{reader.joint} (joints: {others}; choose with --joint)"))
     if reader.has_time and t_first is not None:
         span = float(t_last - t_first)
-        rate = (ok - 1) / span if span > 0 else float("nan")
-        lines.append(("time", f"{float(t_first)!r} .. {float(t_last)!r} s (span {span:.6g} s)"))
-        lines.append(("rate", f"{rate:.6g} Hz mean; step min {dt_min:.6g} s, max {dt_max:.6g} s"
-                      + (f"; {back} steps not increasing" if back else "; strictly increasing")))
+        lines.append(("time", f"{_num(t_first)} .. {_num(t_last)} s (span {span:.6g} s)"))
+        if not np.isfinite(dt_min):  # no step: a single timed row
+            lines.append(("rate", "- (one row)"))
+        else:
+            mean = f"{(ok - 1) / span:.6g} Hz mean" if span > 0 else "- (no time elapses)"
+            lines.append(("rate", f"{mean}; step min {dt_min:.6g} s, max {dt_max:.6g} s"
+                          + (f"; {back} steps not increasing" if back else "; strictly increasing")))
     else:
         lines.append(("time", "none (no time column)"))
     lines.append(("position", "x y z" if reader.has_pos else "none"))
@@ -591,6 +644,8 @@ def cmd_bench(args):
 
 def cmd_plot(args):
     mod = _optional("plot", "plot")
+    if args.seq is not None:
+        _euler_seq(args.seq, f"--seq {args.seq}", "--seq ZXY")
     check_output(args.OUT, [args.IN] + ([args.after] if args.after else []), args.force)
     extra = {k: v for k, v in (("after", args.after), ("seq", args.seq)) if v is not None}
     return int(
@@ -645,7 +700,8 @@ def build_parser():
     p = argparse.ArgumentParser(
         prog="quatarray",
         description="Batch processing of large rotation streams: convert, clean, resample, rotate, compose.",
-        epilog="Quaternions are (w, x, y, z). Exit status: 0 ok, 1 bad data, 2 bad usage. "
+        epilog="Quaternions are (w, x, y, z). Exit status: 0 ok, 1 bad data, 2 bad usage or unwritable output, "
+               "128 + N on signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). "
                "Formats: npy, csv (named columns t, x y z, qw qx qy qz), tum, euroc, kitti, parquet, bvh.",
     )
     from . import __version__
@@ -710,15 +766,42 @@ def build_parser():
 
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")
-    s.add_argument("OUT", metavar="OUT.png")
+    s.add_argument("OUT", metavar="OUT.png", help="the image; its extension names the format (.png, .pdf, .svg …)")
     s.add_argument("--after", metavar="FILE", help="a second stream (e.g. resampled) drawn over IN")
     s.add_argument("--seq", metavar="SEQ", help="Euler sequence of the angle panel (default: the BVH's own, else ZYX)")
     s.set_defaults(func=cmd_plot)
     return p
 
 
+class _Signalled(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is, as Ctrl-C raises KeyboardInterrupt:
+    the writers' ``with`` blocks remove their temporary files on the way out."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """Within: SIGTERM and SIGHUP raise :class:`_Signalled` (unless ignored, e.g. under nohup)."""
+    def handler(signum, frame):
+        raise _Signalled(signum)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():  # signal.signal works there only
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                previous[sig] = signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
 def main(argv=None):
-    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage).
+    """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage, 128 + N on signal N).
 
     Parameters
     ----------
@@ -751,7 +834,8 @@ def main(argv=None):
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _signals_interrupt():
+            return int(args.func(args) or 0)
     except UsageError as exc:
         print(f"quatarray {args.verb}: error: {exc}", file=sys.stderr)
         return 2
@@ -765,9 +849,13 @@ def main(argv=None):
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("quatarray: interrupted", file=sys.stderr)
-        return 130
+    except MemoryError:
+        print(f"quatarray {args.verb}: error: out of memory; try a smaller --chunk", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, _Signalled) else signal.SIGINT
+        print(f"quatarray: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":  # pragma: no cover

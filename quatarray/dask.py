@@ -723,6 +723,10 @@ class _NpyTarget:
             if os.path.isdir(self.tmp) and os.path.lexists(self.dst):  # --force, for a store: moved aside first
                 old = self.tmp + ".old"
                 os.replace(self.dst, old)
+            if not os.path.isdir(self.tmp):  # mkstemp made it 0600
+                from .io.writers import output_mode
+
+                os.chmod(self.tmp, output_mode(self.dst))
             os.replace(self.tmp, self.dst)
         if old:
             self._remove(old)
@@ -1613,8 +1617,8 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
         if t.shape[0] < 2:
             raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {t.shape[0]}")
         newt.t0, last = float(ends[0]), float(ends[1])
-        if rate is not None:  # t0 + k / rate, made by the workers block by block (as upto() would)
-            n = newt.end(last, True)
+        if rate is not None:  # t0 + k / rate, made by the workers block by block (as pieces() would)
+            n = newt.count(last, True)
             nt = newt.t0 + da.arange(0, n, chunks=int(chunk), dtype=np.float64) / newt.rate
         else:
             nt = newt.upto(last, True)

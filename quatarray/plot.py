@@ -12,7 +12,6 @@ Needs matplotlib (the optional ``plot`` extra); without it
 
 import os
 import sys
-import tempfile
 
 import numpy as np
 
@@ -85,8 +84,9 @@ def plot_streams(out_png, t, q, seq=None, after=None, title="", labels=("keys", 
     Parameters
     ----------
     out_png : str
+        The image to write; its extension names the format (``.png``, ``.pdf``, ``.svg``, ``.jpg`` …).
     t : ndarray (n,) or None
-        Times in seconds (None: row index).
+        Times in seconds (None: row index; the speed is then in degrees per row).
     q : ndarray (n, 4)
         (w, x, y, z) quaternions; normalised and unflipped for drawing.
     seq : str, optional
@@ -152,7 +152,7 @@ def plot_streams(out_png, t, q, seq=None, after=None, title="", labels=("keys", 
     xlabel = "row" if t is None else ("time (s)" if not t0 else f"time since t0 = {t0:.6f} (s)")
     axes[0].set_ylabel(f"Euler {seq} (deg)")
     axes[1].set_ylabel("angle from first sample (deg)")
-    axes[2].set_ylabel("angular speed (deg/s)")
+    axes[2].set_ylabel("angular speed (deg/s)" if t is not None else "angular speed (deg/row)")
     axes[-1].set_xlabel(xlabel)
     intrinsic = seq.isupper()
     axes[0].set_title(f"Euler angles, {'intrinsic' if intrinsic else 'extrinsic'} {seq}, unwrapped", fontsize=9)
@@ -164,17 +164,32 @@ def plot_streams(out_png, t, q, seq=None, after=None, title="", labels=("keys", 
         axes[2].legend(loc="upper right", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=11)
-    # written beside OUT and renamed: a failed run never leaves a partial PNG
-    folder, base = os.path.split(os.path.abspath(out_png))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".png", dir=folder)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        os.replace(tmp, out_png)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    # written beside OUT and renamed: a failed run never leaves a partial image
+    from .io import Writer
+
+    fmt = image_format(out_png)
+    with Writer(out_png, suffix=f".{fmt}") as w:
+        fig.savefig(w.tmp, format=fmt)
     return out_png
+
+
+def image_format(path):
+    """The image format OUT's extension names (as matplotlib's ``savefig`` reads it).
+
+    Raises :class:`~quatarray.io.UsageError` for an extension matplotlib does not write.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .io import UsageError
+
+    known = FigureCanvasAgg(Figure()).get_supported_filetypes()
+    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    if ext not in known:
+        named = repr("." + ext) if ext else "(none)"
+        raise UsageError(f"{path}: cannot tell the image format from the extension {named}; "
+                         f"use one of {', '.join('.' + k for k in sorted(known))}")
+    return ext
 
 
 def plot_file(in_path, out_png, fmt="auto", layout=None, joint=None, chunk=None, on_invalid="error",
@@ -186,7 +201,7 @@ def plot_file(in_path, out_png, fmt="auto", layout=None, joint=None, chunk=None,
     in_path : str
         Any stream ``quatarray`` reads (npy, csv, tum, euroc, parquet, bvh ...).
     out_png : str
-        The PNG to write.
+        The image to write; its extension names the format (see :func:`image_format`).
     fmt, layout, joint, chunk, on_invalid
         As for the other commands (see ``quatarray --help``).
     after : str, optional
@@ -203,6 +218,7 @@ def plot_file(in_path, out_png, fmt="auto", layout=None, joint=None, chunk=None,
     if not have_matplotlib():
         print(MISSING, file=err)
         return 2
+    image_format(out_png)  # before the reading
     opts = dict(fmt=fmt, layout=layout, joint=joint, chunk=chunk, on_invalid=on_invalid)
     t, q, file_seq, what, step = _read(in_path, **opts)
     if len(q) == 0:

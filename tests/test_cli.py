@@ -616,3 +616,292 @@ def test_resample_in_rate_on_timed_stream_said(capsys, stream, tmp_path):
     rc, _, err = cli(capsys, "resample", path, tmp_path / "o.csv", "--rate", "20", "--in-rate", "100")
     assert rc == 0 and f"{path}: has a time column; --in-rate ignored" in err.splitlines()
     np.testing.assert_allclose(read_csv(tmp_path / "o.csv")["t"][:2], [t[0], t[0] + 0.05])
+
+
+# --------------------------------------------------------------------------
+# hardening (issue 14): permissions, signals, write errors
+
+
+def _leftovers(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+@pytest.mark.parametrize("ext", ["npy", "csv", "parquet", "txt"])
+def test_output_mode_is_0666_less_umask(capsys, tmp_path, ext):
+    t, pos, q = smooth_stream(np.random.default_rng(1), 20)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="")
+    out = tmp_path / f"o.{ext}"
+    old = os.umask(0o027)
+    try:
+        assert cli(capsys, "unflip", tmp_path / "s.csv", out)[0] == 0
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o640
+
+
+def test_force_keeps_the_mode_of_the_file_it_replaces(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(2), 10))
+    out = tmp_path / "o.csv"
+    out.write_text("old\n")
+    out.chmod(0o604)
+    assert cli(capsys, "convert", tmp_path / "q.npy", out, "--to", "quat", "--force")[0] == 0
+    assert out.stat().st_mode & 0o777 == 0o604 and out.read_text().startswith("qw,")
+
+
+def test_force_refuses_a_fifo(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(3), 10))
+    os.mkfifo(tmp_path / "o.csv")
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "o.csv", "--to", "quat", "--force")
+    assert rc == 2 and "not a regular file" in err and len(err.strip().splitlines()) == 1
+    assert (tmp_path / "o.csv").is_fifo()
+
+
+def test_parent_that_is_a_file(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(4), 10))
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "q.npy" / "o.csv", "--to", "quat")
+    assert rc == 2 and "is not a folder" in err and "does not exist" not in err
+
+
+def test_unwritable_destination_names_out(capsys, tmp_path, monkeypatch):
+    import tempfile
+
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(5), 10))
+
+    def refused(prefix, suffix, dir):
+        path = os.path.join(dir, prefix + "abc123" + suffix)
+        raise PermissionError(13, "Permission denied", path)
+
+    monkeypatch.setattr(tempfile, "mkstemp", refused)
+    out = tmp_path / "o.npy"
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", out, "--to", "quat")
+    assert rc == 2 and err.strip() == f"quatarray convert: error: {out}: cannot write the output: Permission denied"
+
+
+FSIZE = (
+    "import resource, signal, sys\n"
+    "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+    "lim = int(sys.argv[1])\n"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))\n"
+    "from quatarray.cli import main\n"
+    "sys.exit(main(sys.argv[2:]))\n"
+)
+
+
+@pytest.mark.parametrize("ext", ["csv", "npy"])
+def test_write_error_at_the_end_leaves_nothing(tmp_path, ext):
+    """A file-size limit one byte short of the output: the last write (the final flush) fails."""
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(6), 5000))
+    args = ["convert", tmp_path / "q.npy", tmp_path / f"full.{ext}", "--to", "quat", "--no-progress"]
+    assert run(*args).returncode == 0
+    size = (tmp_path / f"full.{ext}").stat().st_size
+    out = tmp_path / f"o.{ext}"
+    args[2] = out
+    res = subprocess.run([sys.executable, "-c", FSIZE, str(size - 1), *map(str, args)], capture_output=True,
+                         text=True, cwd=ROOT)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.strip().startswith(f"quatarray convert: error: {out}: cannot write the output: ")
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not out.exists() and _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("method", ["bezier", "squad"])
+def test_resample_in_pieces_is_the_same(capsys, tmp_path, method):
+    """New times written --chunk at a time, each piece from the keys around it: the same
+    samples as in one piece."""
+    t, pos, q = smooth_stream(np.random.default_rng(7), 40)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="")
+    for chunk in (7, 100000):
+        rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / f"r{chunk}.npy", "--rate", 97,
+                         "--method", method, "--chunk", chunk)
+        assert rc == 0, err
+    np.testing.assert_array_equal(np.load(tmp_path / "r7.npy"), np.load(tmp_path / "r100000.npy"))
+
+
+@pytest.mark.slow
+def test_bounded_memory_resample_to_a_high_rate(tmp_path):
+    """20 keys at 1 Hz to 2·10⁵ Hz: 3.8·10⁶ new rows (116 MiB out) with a few MiB above the
+    interpreter's own footprint: the new times are made and evaluated --chunk at a time."""
+    np.save(tmp_path / "k.npy", unit(np.random.default_rng(8), 20))
+    base = _peak_kib("resample", tmp_path / "k.npy", tmp_path / "b.npy", "--in-rate", 1, "--rate", 10)
+    peak = _peak_kib("resample", tmp_path / "k.npy", tmp_path / "o.npy", "--in-rate", 1, "--rate", 2e5,
+                     "--chunk", 65536)
+    grown = (peak - base) / 1024
+    assert grown < 40, f"peak RSS grew by {grown:.0f} MiB over the {base / 1024:.0f} MiB baseline"
+    assert np.load(tmp_path / "o.npy", mmap_mode="r").shape == (19 * 200000 + 1, 4)
+
+
+@pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGHUP", 129), ("SIGINT", 130)])
+def test_signals_leave_nothing_behind(tmp_path, sig, code):
+    import signal
+    import time
+
+    np.save(tmp_path / "k.npy", unit(np.random.default_rng(9), 20))
+    out = tmp_path / "o.npy"
+    # SIGINT's default (KeyboardInterrupt) only where it is not ignored, as it is under `cmd &`
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "quatarray", "resample", str(tmp_path / "k.npy"), str(out), "--in-rate", "1",
+         "--rate", "1e7", "--chunk", "10000", "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.stat().st_size > 1 << 20 for p in tmp_path.glob(".o.npy.*")):
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+            time.sleep(0.02)
+        proc.send_signal(getattr(signal, sig))
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == code, err
+    assert err.strip() == f"quatarray: interrupted ({sig})"
+    assert not out.exists() and _leftovers(tmp_path) == []
+
+
+def test_float16_npy_is_read_as_float32(capsys, tmp_path):
+    q = unit(np.random.default_rng(10), 30)
+    np.save(tmp_path / "h.npy", q.astype(np.float16))
+    rc, _, err = cli(capsys, "convert", tmp_path / "h.npy", tmp_path / "o.npy", "--to", "matrix")
+    assert rc == 0, err
+    out = np.load(tmp_path / "o.npy")
+    assert out.dtype == np.float32
+    np.testing.assert_allclose(out, rot(q.astype(np.float16).astype(np.float64)).as_matrix(), atol=1e-6)
+    rc, out, _ = cli(capsys, "info", tmp_path / "h.npy")
+    assert rc == 0 and "float32" in out
+
+
+def test_plot_refuses_a_bad_seq(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(11), 10))
+    rc, _, err = cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.png", "--seq", "ABC")
+    assert rc == 2 and err.startswith("quatarray plot: error: --seq ABC: SEQ is three axes")
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "p.png").exists()
+
+
+def test_resample_beyond_the_disk_is_one_line(capsys, tmp_path):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(12), 20))
+    rc, _, err = cli(capsys, "resample", tmp_path / "q.npy", tmp_path / "r.npy", "--in-rate", 1, "--rate", 1e12)
+    assert rc == 2 and "free on its disk" in err and len(err.strip().splitlines()) == 1
+    assert _leftovers(tmp_path) == [] and not (tmp_path / "r.npy").exists()
+
+
+def test_memory_error_is_one_line(capsys, tmp_path, monkeypatch):
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(13), 20))
+
+    def no_memory(*a, **kw):
+        raise MemoryError("Unable to allocate 267. GiB for an array with shape (35800000000000,)")
+
+    monkeypatch.setattr(qa, "as_matrix", no_memory)
+    rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "o.npy", "--to", "matrix")
+    assert rc == 2 and err.strip() == "quatarray convert: error: out of memory; try a smaller --chunk"
+    assert _leftovers(tmp_path) == []
+
+
+def test_rate_finer_than_the_time_resolution(capsys, tmp_path):
+    t = 1.3e9 + np.arange(20) * 0.01  # epoch seconds: float64 steps of 2.4e-7 s
+    q = unit(np.random.default_rng(14), 20)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, q]), delimiter=",", header="t,qw,qx,qy,qz",
+               comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "r.csv", "--rate", 1e9)
+    assert rc == 2 and "finer than the time resolution" in err and len(err.strip().splitlines()) == 1
+    assert _leftovers(tmp_path) == [] and not (tmp_path / "r.csv").exists()
+    assert cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "r.csv", "--rate", 1e5)[0] == 0
+    assert (np.diff(np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1)[:, 0]) > 0).all()
+
+
+@pytest.mark.parametrize("ext, magic", [("pdf", b"%PDF"), ("svg", b"<?xml"), ("jpg", b"\xff\xd8"),
+                                        ("png", b"\x89PNG")])
+def test_plot_writes_the_format_its_extension_names(capsys, tmp_path, ext, magic):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(15), 10))
+    out = tmp_path / f"p.{ext}"
+    old = os.umask(0o022)
+    try:
+        assert cli(capsys, "plot", tmp_path / "q.npy", out)[0] == 0
+    finally:
+        os.umask(old)
+    assert out.read_bytes().startswith(magic) and out.stat().st_mode & 0o777 == 0o644
+    assert _leftovers(tmp_path) == []
+
+
+def test_plot_refuses_an_unknown_extension(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(16), 10))
+    rc, _, err = cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.xyz")
+    assert rc == 2 and "cannot tell the image format from the extension '.xyz'" in err and ".pdf" in err
+    assert not (tmp_path / "p.xyz").exists() and _leftovers(tmp_path) == []
+
+
+def test_plot_speed_per_row_without_times(capsys, tmp_path):
+    matplotlib = pytest.importorskip("matplotlib")
+    np.save(tmp_path / "q.npy", unit(np.random.default_rng(17), 10))
+    with matplotlib.rc_context({"svg.fonttype": "none"}):  # text kept as text
+        assert cli(capsys, "plot", tmp_path / "q.npy", tmp_path / "p.svg")[0] == 0
+    svg = (tmp_path / "p.svg").read_text()
+    assert "angular speed (deg/row)" in svg and "deg/s" not in svg
+
+
+def test_resample_times_messages_are_plain_and_by_line(capsys, tmp_path):
+    t = 1311868164.0 + np.arange(10) * 0.1
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, unit(np.random.default_rng(18), 10)]), delimiter=",",
+               header="t,qw,qx,qy,qz", comments="", fmt="%.17g")
+    cases = {
+        "back.txt": ("# new times\n1311868164.5\n1311868164.25\n", "back.txt:3: decreasing time 1311868164.25 "
+                     "(previous 1311868164.5); times must not decrease"),
+        "late.txt": ("1311868164.5\n\n1311868200.5\n", "late.txt:3: time 1311868200.5 is after the last key time "
+                     "1311868164.9"),
+        "early.txt": ("# t\n1311868163.5\n", "early.txt:2: time 1311868163.5 is before the first key time "
+                      "1311868164.0"),
+    }
+    for name, (text, want) in cases.items():
+        (tmp_path / name).write_text(text)
+        rc, _, err = cli(capsys, "resample", tmp_path / "s.csv", tmp_path / "o.csv", "--times", tmp_path / name)
+        assert rc == 1 and err.strip() == f"{tmp_path / name}:{want.split(':', 1)[1]}", err
+        assert "np.float64" not in err
+
+
+def test_resample_times_garbage_npy(capsys, stream, tmp_path):
+    path = stream[0]
+    (tmp_path / "g.npy").write_bytes(b"garbage" * 10)
+    rc, _, err = cli(capsys, "resample", path, tmp_path / "o.npy", "--times", tmp_path / "g.npy")
+    assert rc == 1 and "not a valid .npy float array" in err and "pickle" not in err
+
+
+def test_info_one_row(capsys, tmp_path):
+    (tmp_path / "one.csv").write_text("t,qw,qx,qy,qz\n0.5,1,0,0,0\n")
+    rc, out, _ = cli(capsys, "info", tmp_path / "one.csv")
+    assert rc == 0 and "rate:" in out
+    rate = next(ln for ln in out.splitlines() if ln.startswith("rate:"))
+    assert rate.split(":", 1)[1].strip() == "- (one row)"
+    body = out.split("\n", 1)[1]  # after the file line (its path may hold "inf")
+    assert "nan" not in body and "inf" not in body
+
+
+def test_tum_output(capsys, tmp_path):
+    t, pos, q = smooth_stream(np.random.default_rng(19), 30)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "unflip", tmp_path / "s.csv", tmp_path / "o.tum")
+    assert rc == 0, err
+    lines = (tmp_path / "o.tum").read_text().splitlines()
+    assert lines[0] == "# timestamp tx ty tz qx qy qz qw" and len(lines) == 31
+    got = np.loadtxt(tmp_path / "o.tum")
+    np.testing.assert_array_equal(got[:, 0], t)
+    np.testing.assert_allclose(got[:, 1:4], pos)
+    assert same_rotation(got[:, [7, 4, 5, 6]], q / np.linalg.norm(q, axis=1)[:, None])
+    # and it reads back as a TUM stream
+    rc, out, _ = cli(capsys, "info", tmp_path / "o.tum")
+    assert rc == 0 and "tum" in out
+
+
+def test_tum_output_refusals_say_what_is_wrong(capsys, tmp_path):
+    t, pos, q = smooth_stream(np.random.default_rng(20), 10)
+    np.savetxt(tmp_path / "s.csv", np.column_stack([t, pos, q]), delimiter=",",
+               header="t,x,y,z,qw,qx,qy,qz", comments="", fmt="%.17g")
+    rc, _, err = cli(capsys, "convert", tmp_path / "s.csv", tmp_path / "o.tum", "--to", "xyzw")
+    assert rc == 2 and "holds quaternions only" in err and "--to xyzw" in err and "--to quat" in err
+    np.save(tmp_path / "q.npy", q)  # no times, no positions
+    rc, _, err = cli(capsys, "unflip", tmp_path / "q.npy", tmp_path / "o.tum")
+    assert rc == 2 and "needs times and positions; this stream has no times and no positions" in err
+    assert _leftovers(tmp_path) == []

@@ -409,6 +409,27 @@ def test_read_times(tmp_path):
         io.read_times(p, name="b.txt")
 
 
+def test_read_times_locates_each_time(tmp_path):
+    p = write(tmp_path / "t.txt", "# times\n\n0.25\n# gap\n0.75\n")
+    t, where = io.read_times(p, name="t.txt", locate=True)
+    assert list(t) == [0.25, 0.75] and where(0) == "t.txt:3" and where(1) == "t.txt:5"
+    p = write(tmp_path / "s.tum", "# tum\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0 1\n")
+    t, where = io.read_times(p, name="s.tum", locate=True)
+    assert list(t) == [1, 2] and where(1) == "s.tum:3"
+
+
+@pytest.mark.parametrize("content", [b"garbage" * 10, None])
+def test_read_times_garbage_npy(tmp_path, content):
+    p = tmp_path / "t.npy"
+    if content is None:
+        np.save(p, np.array([{"a": 1}, 2], dtype=object), allow_pickle=True)
+    else:
+        p.write_bytes(content)
+    with pytest.raises(DataError, match=r"t\.npy: not a valid \.npy float array") as exc:
+        io.read_times(p, name="t.npy")
+    assert "pickle" not in str(exc.value)
+
+
 # --------------------------------------------------------------------------
 # the real recordings
 

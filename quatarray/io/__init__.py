@@ -14,13 +14,14 @@ columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH.
 """
 
 from .clean import Cleaner
-from .errors import DataError, UsageError
+from .errors import DataError, OutputError, UsageError
 from .formats import FORMATS, output_format
 from .readers import DEFAULT_CHUNK, open_stream, read_times
 from .streams import Chunk, concat, rechunk
-from .writers import check_output, open_writer
+from .writers import Writer, check_output, open_writer, output_mode
 
 __all__ = [
-    "Chunk", "Cleaner", "DataError", "UsageError", "FORMATS", "DEFAULT_CHUNK", "open_stream",
-    "read_times", "open_writer", "check_output", "output_format", "concat", "rechunk",
+    "Chunk", "Cleaner", "DataError", "OutputError", "UsageError", "Writer", "FORMATS", "DEFAULT_CHUNK",
+    "open_stream", "read_times", "open_writer", "check_output", "output_mode", "output_format", "concat",
+    "rechunk",
 ]

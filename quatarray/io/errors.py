@@ -11,3 +11,8 @@ class DataError(Exception):
 
 class UsageError(Exception):
     """A bad command line or a refused operation (exit status 2)."""
+
+
+class OutputError(UsageError):
+    """OUT cannot be written: an unwritable folder, a full disk, a file-size limit
+    (exit status 2, as a refused operation: the data are fine)."""

@@ -5,7 +5,7 @@ import os
 from .errors import DataError, UsageError
 
 FORMATS = ("auto", "npy", "csv", "tum", "euroc", "parquet", "bvh", "kitti")
-OUT_FORMATS = {".npy": "npy", ".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".txt": "tum"}
+OUT_FORMATS = {".npy": "npy", ".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".tum": "tum", ".txt": "tum"}
 
 # accepted header names (lower case) for each role in csv and parquet inputs
 TIME_NAMES = ("t", "time", "timestamp")
@@ -38,7 +38,7 @@ def output_format(path):
         zarr = " (a .zarr store is written by convert and resample with --scheduler)" if ext == ".zarr" else ""
         raise UsageError(
             f"{path}: cannot tell the output format from the extension {ext or '(none)'!r}; "
-            f"use .npy, .csv, .parquet or .txt (TUM){zarr}"
+            f"use .npy, .csv, .parquet, or .tum/.txt (TUM){zarr}"
         )
     return fmt
 

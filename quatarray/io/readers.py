@@ -169,6 +169,16 @@ def array_layout(name, kind, layout, shape, dtype):
     raise DataError(f"{name}: expected vectors of shape (N, 3), got {shape}")
 
 
+def _kernel_dtype(dtype):
+    """The float type the kernels take for an array of `dtype`: float32 for float16, native
+    float32/float64 as they are, float64 for the rest (integers, long double)."""
+    if dtype.kind == "f" and dtype.itemsize <= 4:
+        return np.dtype(np.float32)
+    if dtype.kind == "f" and dtype.itemsize == 8:
+        return dtype.newbyteorder("=")
+    return np.dtype(np.float64)
+
+
 class NpyReader(Reader):
     """A ``.npy`` array read one memory-mapped chunk at a time.
 
@@ -214,8 +224,8 @@ class NpyReader(Reader):
         with only those rows' pages mapped. Matrices become quaternions; one
         that is not a rotation raises, or becomes a nan row with `bad_ok`."""
         block = self._block(a, b)
-        if self.dtype.kind != "f" or not self.dtype.isnative:
-            block = block.astype(np.float64 if self.dtype.kind != "f" else self.dtype.newbyteorder("="))
+        if self.dtype.kind != "f" or not self.dtype.isnative or self.dtype.itemsize not in (4, 8):
+            block = block.astype(_kernel_dtype(self.dtype))
         if self.core == (3, 3):
             return Chunk(_from_matrix(block, self, a, bad_ok), row0=a)
         if self.kind == "quat":
@@ -974,30 +984,37 @@ def _parse_num(s, typ, name, lineno, what):
 # times for `resample --times`
 
 
-def read_times(path, fmt="auto", name=None, order=None):
+def read_times(path, fmt="auto", name=None, order=None, locate=False):
     r"""A 1-D float64 array of times from a file.
 
-    ``.npy``: a 1-D array (or (N, 1)). Text: one number a line, or any stream
-    file with a time column (csv/tum/euroc/parquet/bvh), whose times are used.
+    ``.npy``: a 1-D float (or integer) array (or (N, 1)). Text: one number a
+    line, or any stream file with a time column (csv/tum/euroc/parquet/bvh),
+    whose times are used.
 
     Parameters
     ----------
     path : str or path-like
     fmt : {"auto", "npy", "csv", ...}
+        As for :func:`open_stream` (default: by extension and contents).
     name : str, optional
         The file's name in messages (default `path`).
     order : {None, "non-decreasing", "increasing"}
         Check that the times are finite and in this order: the first that is
         not raises a :class:`DataError` naming its line (its row in an npy file).
+    locate : bool, optional
+        Also return ``where(i)``, the place of time ``i`` for a message
+        (``"times.txt:12"``, 1-based lines; ``"t.npy: row 11"`` in an array).
 
     Examples
     --------
     >>> import os, tempfile
     >>> from quatarray import io
     >>> path = os.path.join(tempfile.mkdtemp(), "times.txt")
-    >>> _ = open(path, "w").write("0.0\n0.25\n0.5\n")
+    >>> _ = open(path, "w").write("# s\n0.0\n0.25\n0.5\n")
     >>> io.read_times(path)
     array([0.  , 0.25, 0.5 ])
+    >>> io.read_times(path, locate=True)[1](1) == f"{path}:3"
+    True
     """
     path = os.fspath(path)
     name = name or path
@@ -1012,7 +1029,7 @@ def read_times(path, fmt="auto", name=None, order=None):
         if bad.any():
             i = int(np.argmax(bad)) + 1
             raise DataError(f"{where(i)}: {time_order(times[i], times[i - 1], order == 'increasing')}")
-    return times
+    return (times, where) if locate else times
 
 
 def _times_and_where(path, fmt, name):
@@ -1020,10 +1037,19 @@ def _times_and_where(path, fmt, name):
     if not os.path.exists(path):
         raise UsageError(f"{name}: no such file")
     if (fmt == "auto" and F.by_extension(path) == "npy") or fmt == "npy":
+        bad = f"{name}: not a valid .npy float array"
         try:
-            a = np.load(path, mmap_mode="r")
+            with open(path, "rb") as f:
+                np.lib.format.read_magic(f)
+        except (ValueError, OSError, EOFError):
+            raise DataError(f"{bad} (no .npy header)") from None
+        try:
+            a = np.load(path, mmap_mode="r", allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
-            raise DataError(f"{name}: not a valid .npy file ({F.shown(exc, 100)})") from None
+            why = "it holds Python objects" if "pickle" in str(exc) or "object" in str(exc) else F.shown(exc, 100)
+            raise DataError(f"{bad} ({why})") from None
+        if a.dtype.kind not in "fiu" or a.dtype.fields is not None:
+            raise DataError(f"{bad} (dtype {a.dtype})")
         if a.ndim == 2 and a.shape[1] == 1:
             a = a[:, 0]
         if a.ndim != 1:

@@ -6,13 +6,15 @@ an exception) removes the temporary file, so a failed or interrupted run
 never leaves a partial OUT.
 """
 
+import contextlib
 import os
+import stat
 import tempfile
 
 import numpy as np
 
 from . import formats as F
-from .errors import UsageError
+from .errors import OutputError, UsageError
 from .formats import is_zarr
 
 
@@ -37,11 +39,39 @@ def check_output(out, inputs=(), force=False):
             raise UsageError(f"{out}: the output is the input file; write to another file")
     if os.path.isdir(out) and not is_zarr(out):  # a zarr store is a folder
         raise UsageError(f"{out}: is a directory")
+    if os.path.exists(out) and not os.path.isdir(out) and not stat.S_ISREG(os.stat(out).st_mode):
+        raise UsageError(f"{out}: is not a regular file (a FIFO, socket or device); refusing to replace it")
     if os.path.exists(out) and not force:
         raise UsageError(f"{out}: exists; use --force to overwrite it")
     parent = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(parent):
+        up = parent
+        while not os.path.exists(up):  # the nearest existing ancestor tells which it is
+            up = os.path.dirname(up)
+        if not os.path.isdir(up):
+            raise UsageError(f"{out}: {up} is not a folder")
         raise UsageError(f"{out}: the folder {parent} does not exist")
+
+
+def output_mode(out):
+    """The permissions OUT gets: those of the regular file it replaces (``--force``), else
+    0666 less the umask, as any other tool's new file (``mkstemp`` makes 0600)."""
+    try:
+        st = os.stat(out)
+    except OSError:
+        st = None
+    if st is not None and stat.S_ISREG(st.st_mode):
+        return stat.S_IMODE(st.st_mode)
+    mask = os.umask(0o022)  # reading the umask means setting it: put it back at once
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _size(nbytes):
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB"):
+        if nbytes < 1024 or unit == "TiB":
+            return f"{nbytes:.4g} {unit}"
+        nbytes /= 1024
 
 
 def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
@@ -78,27 +108,94 @@ def open_writer(path, fields, core=None, time=False, pos=False, fmt=None):
     if fmt == "parquet":
         return ParquetWriter(path, cols)
     if fmt == "tum":
-        if not (time and pos and list(fields) == ["qw", "qx", "qy", "qz"]):
-            raise UsageError(f"{path}: a TUM (.txt) output needs times, positions and quaternions")
+        if list(fields) != ["qw", "qx", "qy", "qz"]:
+            raise UsageError(f"{path}: a TUM output holds quaternions only (it has no columns {' '.join(fields)})")
+        missing = [what for what, have in (("times", time), ("positions", pos)) if not have]
+        if missing:
+            raise UsageError(f"{path}: a TUM output (timestamp tx ty tz qx qy qz qw) needs times and "
+                             f"positions; this stream has no {' and no '.join(missing)}")
         return TumWriter(path, cols)
     raise UsageError(f"{path}: cannot write format {fmt!r}")
 
 
 class Writer:
+    """Where an output goes while it is written: a temporary file beside OUT.
+
+    The file is renamed over OUT by :meth:`close`, with the mode OUT gets
+    (:func:`output_mode`); :meth:`abort`, or a ``with`` block left by an
+    exception, removes it. An :class:`OSError` on the way (an unwritable
+    folder, a full disk, a file-size limit) becomes an
+    :class:`~quatarray.io.OutputError` naming OUT, and the temporary file
+    goes. The base class itself suits code that writes the temporary file
+    by its path (``tmp``), as a plot's ``savefig`` does.
+
+    Parameters
+    ----------
+    path : str
+        OUT.
+    suffix : str, optional
+        Of the temporary file (default ``".tmp"``).
+    """
+
+    min_row_bytes = 0  # a lower bound on the bytes a row takes in the file (see reserve)
+
     def buffer(self, n, dtype):
         """Where a kernel may put the next ``n`` rows (``out=``), or None to allocate."""
+        with self._naming_out():
+            return self._buffer(n, dtype)
+
+    def _buffer(self, n, dtype):
         return None
 
-    def __init__(self, path):
+    def __init__(self, path, suffix=".tmp"):
         self.path = os.fspath(path)
-        folder, base = os.path.split(os.path.abspath(self.path))
-        fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
-        os.close(fd)
         self.rows = 0
-        self.closed = False
+        self.closed = True  # until the temporary file exists
+        folder, base = os.path.split(os.path.abspath(self.path))
+        with self._naming_out():
+            fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=suffix, dir=folder)
+            os.close(fd)
+            self.closed = False
+            self._open()
+
+    @contextlib.contextmanager
+    def _naming_out(self):
+        """An OSError inside → the temporary file removed, and an OutputError naming OUT."""
+        try:
+            yield
+        except OSError as exc:
+            self.abort()
+            raise OutputError(f"{self.path}: cannot write the output: {exc.strerror or exc}") from None
+        except BaseException:
+            self.abort()
+            raise
+
+    def _open(self):
+        pass
 
     def write(self, data, t=None, pos=None):
+        """Append rows (with their times and positions, where the output has those columns)."""
+        with self._naming_out():
+            self._write(data, t, pos)
+
+    def _write(self, data, t, pos):
         raise NotImplementedError
+
+    def reserve(self, rows):
+        """Refuse, before any is computed, ``rows`` more rows that cannot fit on OUT's disk.
+
+        Raises :class:`~quatarray.io.OutputError` when even at
+        ``min_row_bytes`` a row they need more than the free space.
+        """
+        need = rows * self.min_row_bytes
+        if not need:
+            return
+        st = os.statvfs(os.path.dirname(os.path.abspath(self.tmp)))
+        free = st.f_bavail * st.f_frsize
+        if need > free:
+            self.abort()
+            raise OutputError(f"{self.path}: {rows:.4g} more rows need at least {_size(need)}, "
+                              f"more than the {_size(free)} free on its disk")
 
     def _finish(self):
         pass
@@ -107,16 +204,21 @@ class Writer:
         """Finish the file and move it to OUT."""
         if self.closed:
             return
-        self._finish()
-        os.replace(self.tmp, self.path)
+        with self._naming_out():
+            self._finish()
+            os.chmod(self.tmp, output_mode(self.path))
+            os.replace(self.tmp, self.path)
         self.closed = True
 
     def abort(self):
+        """Drop the temporary file (errors on the way are ignored: the run is abandoned)."""
         if self.closed:
             return
         self.closed = True
         try:
             self._release()
+        except OSError:
+            pass
         finally:
             if os.path.exists(self.tmp):
                 os.unlink(self.tmp)
@@ -150,15 +252,19 @@ class NpyWriter(Writer):
     """
 
     def __init__(self, path, core):
-        super().__init__(path)
         self.core = core
+        self.min_row_bytes = int(np.prod(core)) * 4  # float32 at the least
         self.dtype = None
-        self.f = open(self.tmp, "w+b", buffering=0)  # unbuffered: data goes by os.pwrite
+        self.f = None
         self._scratch = [None, None]  # the two arrays buffer() lends, reused chunk after chunk
         self._lent = None  # index of the array lent and not yet written
         self._next = 0  # the array to lend next (the other one may be in flight)
         self._pool = None  # the background writer (one thread), started on the first write
         self._flight = None  # its pending write
+        super().__init__(path)
+
+    def _open(self):
+        self.f = open(self.tmp, "w+b", buffering=0)  # unbuffered: data goes by os.pwrite
 
     def _header(self, rows):
         shape = (rows,) + self.core
@@ -181,7 +287,7 @@ class NpyWriter(Writer):
     def _end(self):
         return self.head + self.rows * self.rowbytes
 
-    def buffer(self, n, dtype):
+    def _buffer(self, n, dtype):
         """An ``(n,) + core`` array for the next ``n`` rows; pass it (or a leading
         slice of it) to :meth:`write` once filled. Its storage comes back two
         calls later, so write each one before asking for the next."""
@@ -207,7 +313,7 @@ class NpyWriter(Writer):
         if flight is not None:
             flight.result()
 
-    def write(self, data, t=None, pos=None):
+    def _write(self, data, t, pos):
         lent, self._lent = self._lent, None
         scratch = self._scratch[lent] if lent is not None else None
         own = (
@@ -256,7 +362,8 @@ class NpyWriter(Writer):
         except OSError:
             pass  # the run is being abandoned anyway; the temporary file goes
         finally:
-            self.f.close()
+            if self.f is not None:
+                self.f.close()
 
 
 def _table(cols, data, t, pos):
@@ -284,13 +391,16 @@ class CsvWriter(Writer):
     preamble = b""
 
     def __init__(self, path, cols):
-        super().__init__(path)
         self.cols = cols
-        self.w = None
+        self.min_row_bytes = 2 * len(cols)  # a digit and a delimiter a column at the least
+        self.w = self.sink = None
+        super().__init__(path)
+
+    def _open(self):
         self.sink = open(self.tmp, "wb")
         self.sink.write(self.preamble)
 
-    def write(self, data, t=None, pos=None):
+    def _write(self, data, t, pos):
         import pyarrow.csv as pcsv
 
         table = _table(self.cols, data, t, pos)
@@ -315,7 +425,8 @@ class CsvWriter(Writer):
             if self.w is not None:
                 self.w.close()
         finally:
-            self.sink.close()
+            if self.sink is not None:
+                self.sink.close()
 
 
 class TumWriter(CsvWriter):
@@ -325,17 +436,17 @@ class TumWriter(CsvWriter):
     include_header = False
     preamble = b"# timestamp tx ty tz qx qy qz qw\n"
 
-    def write(self, data, t=None, pos=None):
-        super().write(np.asarray(data)[:, [1, 2, 3, 0]], t, pos)
+    def _write(self, data, t, pos):
+        super()._write(np.asarray(data)[:, [1, 2, 3, 0]], t, pos)
 
 
 class ParquetWriter(Writer):
     def __init__(self, path, cols):
-        super().__init__(path)
         self.cols = cols
         self.w = None
+        super().__init__(path)
 
-    def write(self, data, t=None, pos=None):
+    def _write(self, data, t, pos):
         import pyarrow.parquet as pq
 
         table = _table(self.cols, data, t, pos)
