@@ -70,6 +70,7 @@ PIO2_2 = 6.07710050630396597660e-11
 PIO2_3 = 2.02226624871116645580e-21
 PIO2_4 = 8.47842766036889956997e-32
 INVPIO2 = 6.36619772367581382433e-01
+R_MAX = 1.0  # above π/4 + the float32 rounding of k: the largest reduced argument of sincos (a clamp)
 
 # π/2 for float32 in pieces of 8, 9, 9 and 24 significant bits (π/2 truncated
 # to 10 bits three times over, the zero bits skipped, then the rest rounded):
@@ -139,6 +140,11 @@ def sincos(x):
     """(sin x, cos x), branch-free; accurate for |x| ≤ :func:`sincos_limit`."""
     k = np.rint(x * like(x, INVPIO2))
     r = reduce_pio2(x, k)
+    # Beyond sincos_limit the reduction is inexact; there |r| may leave [-π/4, π/4],
+    # where the polynomials diverge (1e22 for float32 x = 1e6). Clamped (nan kept),
+    # sin² + cos² = 1 holds for every x: the angle is as uncertain as x's rounding.
+    r = like(x, R_MAX) if r > like(x, R_MAX) else r
+    r = like(x, -R_MAX) if r < like(x, -R_MAX) else r
     z = r * r
     # sin(r) = r + r z (S1 + z P), cos(r) = 1 - z/2 + z² Q (fdlibm's split keeps it exact)
     ps = like(x, S2) + z * (like(x, S3) + z * (like(x, S4) + z * (like(x, S5) + z * like(x, S6))))

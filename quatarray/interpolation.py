@@ -5,14 +5,15 @@ Quaternions are ``(..., 4)`` arrays in (w, x, y, z) order, Hamilton algebra.
 Leading dimensions broadcast like numpy; float32 stays float32, float64 stays
 float64, mixed gives float64.
 
-Every slerp here uses the angle θ = 2·atan2(|p − q|, |p + q|) (accurate for
-identical, nearly identical and antipodal pairs, never an arccos) and the
-weights sin((1 − t)θ)/sin θ and sin(tθ)/sin θ, with sin θ = 2ab/(a² + b²)
-from the two chord lengths a = |p − q|, b = |p + q|. The trigonometry is the
-branch-free polynomial code of :mod:`quatarray._trig`, so the row loops run as
-SIMD code. t = 0 and t = 1 give p and q exactly. θ = 0 gives the linear
-blend; an exactly antipodal pair with ``shortest=False`` (no unique arc)
-follows p ⊗ (cos tπ, sin tπ, 0, 0), the convention of :func:`quatarray.power`.
+Every slerp here is p cos tθ + v sin tθ on the great arc from p: θ =
+2·atan2(|p − q|, |p + q|) (accurate for identical, nearly identical and
+antipodal pairs, never an arccos) and v the unit tangent at p towards q, kept
+unit and orthogonal to p, so the result is unit for every pair and every t
+(see :func:`arc`). The trigonometry is the branch-free polynomial code of
+:mod:`quatarray._trig`, so the row loops run as SIMD code. t = 0 and t = 1
+give p and q exactly. θ = 0 gives p; an exactly antipodal pair with
+``shortest=False`` (no unique arc) follows p ⊗ (cos tπ, sin tπ, 0, 0), the
+convention of :func:`quatarray.power`.
 """
 
 import math
@@ -45,12 +46,18 @@ NSEG = 31  # floats per row of a spline's segment table: 4 quaternions, 3 arcs
 
 @inline
 def arc(p, q, shortest):
-    """(θ, sin θ, antipodal, f) of the great arc from unit p to unit (1 − f)·q.
+    """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
 
     f = 2 when p·q < 0 and `shortest` is 1.0, else 0 (`shortest` is a float
-    flag: a runtime boolean in the loop keeps LLVM from vectorising).
-    The flip costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|)
-    ∈ [0, π]; sin θ = 2ab/(a² + b²); antipodal is 1 exactly when p = −sq.
+    flag: a runtime boolean in the loop keeps LLVM from vectorising); the flip
+    costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|) ∈ [0, π]
+    from the chords a = |p − sq|, b = |p + sq|; v is the unit tangent at p
+    towards sq: sq − p cos θ (cos θ = (b² − a²)/(a² + b²)), made orthogonal to
+    p once more and normalised (never divided by sin θ). Near θ = π (b of a few
+    ulp) its direction is only as certain as p + sq, but it stays a unit
+    tangent, so slerp stays unit for every pair and every t.
+    Where no tangent is left (identical or antipodal ends) v = p ⊗ i: an
+    antipodal pair follows p ⊗ (cos tπ, sin tπ, 0, 0), as :func:`quatarray.power`.
     """
     dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
@@ -62,61 +69,43 @@ def arc(p, q, shortest):
     # 2 when flipped, else 0, converted from the boolean (a select or copysign
     # feeding the weights stops LLVM's vectoriser)
     sgn = like(d2, 2.0) * flip
+    one = like(d2, 1.0)
     a = np.sqrt(m2)
     b = np.sqrt(p2)
     two = like(a, 2.0)
     th = two * half_arc(a, b)
-    st = two * a * b / (m2 + p2)
-    anti = like(a, 1.0) if b == like(a, 0.0) else like(a, 0.0)
-    return th, st, anti, sgn
-
-
-@inline
-def arc_weights(th, st, anti, t):
-    """(w0, w1, w2) with slerp = w0 p + w1 q + w2 (p ⊗ i) on an arc from :func:`arc`."""
-    one = like(t, 1.0)
-    zero = like(t, 0.0)
-    s1, c1 = sincos(t * th)
-    s0, c0 = sincos((one - t) * th)
-    w0 = s0 / st
-    w1 = s1 / st
-    w2 = zero
-    if th == zero:  # identical: the linear blend (the limit of the weights)
-        w0 = one - t
-        w1 = t
-    if anti > zero:  # p = −q: the arc through p ⊗ i
-        w0 = c1
-        w1 = zero
-        w2 = s1
-    if t == zero:
-        w0 = one
-        w1 = zero
-        w2 = zero
-    if t == one:
-        w0 = zero
-        w1 = one
-        w2 = zero
-    return w0, w1, w2
-
-
-@inline
-def combine(p, q, w):
-    """w0 p + w1 q + w2 (p ⊗ i), with p ⊗ i = (−x, w, z, −y)."""
-    w0, w1, w2 = w
-    return (
-        w0 * p[0] + w1 * q[0] - w2 * p[1],
-        w0 * p[1] + w1 * q[1] + w2 * p[0],
-        w0 * p[2] + w1 * q[2] + w2 * p[3],
-        w0 * p[3] + w1 * q[3] - w2 * p[2],
-    )
+    c = (p2 - m2) / (m2 + p2)  # cos θ
+    k = one - sgn  # ±1: the sign of q on the arc
+    v0 = k * q[0] - c * p[0]
+    v1 = k * q[1] - c * p[1]
+    v2 = k * q[2] - c * p[2]
+    v3 = k * q[3] - c * p[3]
+    e = p[0] * v0 + p[1] * v1 + p[2] * v2 + p[3] * v3
+    v0, v1, v2, v3 = v0 - e * p[0], v1 - e * p[1], v2 - e * p[2], v3 - e * p[3]
+    n2 = v0 * v0 + v1 * v1 + v2 * v2 + v3 * v3
+    nv = one / np.sqrt(n2)
+    v = (v0 * nv, v1 * nv, v2 * nv, v3 * nv)
+    st = two * a * b / (m2 + p2)  # sin θ
+    # no tangent left (|v| ≤ sin θ / 2: rounding only): identical ends (any unit
+    # tangent: sin tθ = 0) or antipodal ones, also p + sq parallel to p (sq a
+    # scaled −p)
+    if n2 <= like(a, 0.25) * st * st:
+        v = (-p[1], p[0], p[3], -p[2])
+    return th, v, sgn
 
 
 @inline
 def slerp4(p, q, t, shortest=0.0):
-    """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's hemisphere)."""
-    th, st, anti, sgn = arc(p, q, shortest)
-    w0, w1, w2 = arc_weights(th, st, anti, t)
-    return combine(p, q, (w0, w1 - sgn * w1, w2))  # exactly ±w1
+    """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
+    hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at
+    t = 0 (sincos(0) = (0, 1)) and t = 1 (±q)."""
+    th, v, sgn = arc(p, q, shortest)
+    s, c = sincos(t * th)
+    r = (c * p[0] + s * v[0], c * p[1] + s * v[1], c * p[2] + s * v[2], c * p[3] + s * v[3])
+    if t == like(t, 1.0):
+        k = like(t, 1.0) - sgn
+        r = (k * q[0], k * q[1], k * q[2], k * q[3])
+    return r
 
 
 @element
@@ -405,25 +394,9 @@ def _sign_summary(q, rows, ends, negated, unit, dots):
 
 @inline
 def fixed_arc(p, q):
-    """(θ, v) of the great arc from unit p to unit q: slerp = p cos tθ + v sin tθ.
-
-    v is the unit tangent at p towards q, (q − p cos θ)/sin θ, with
-    p cos θ = p − p(1 − cos θ) and 1 − cos θ = 2a²/(a² + b²), sin θ =
-    2ab/(a² + b²) from the chords a = |p − q|, b = |p + q| (no cancellation
-    for close p, q). Identical ends: v = 0 (the constant p); antipodal ends
-    (θ = π): v = p ⊗ i, the convention of :func:`arc_weights`.
-    """
-    zero = like(p[0], 0.0)
-    th, st, anti, sgn = arc(p, q, zero)
-    a2 = (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2 + (p[3] - q[3]) ** 2
-    b2 = (p[0] + q[0]) ** 2 + (p[1] + q[1]) ** 2 + (p[2] + q[2]) ** 2 + (p[3] + q[3]) ** 2
-    f = like(p[0], 2.0) * a2 / (a2 + b2)  # 1 − cos θ
-    v = ((q[0] - p[0] + f * p[0]) / st, (q[1] - p[1] + f * p[1]) / st,
-         (q[2] - p[2] + f * p[2]) / st, (q[3] - p[3] + f * p[3]) / st)
-    if th == zero:
-        v = (zero, zero, zero, zero)
-    if anti > zero:
-        v = (-p[1], p[0], p[3], -p[2])
+    """(θ, v) of the great arc from unit p to unit q, flat: slerp = p cos tθ + v sin tθ
+    (:func:`arc`, no flip)."""
+    th, v, sgn = arc(p, q, like(p[0], 0.0))
     return th, v[0], v[1], v[2], v[3]
 
 
@@ -468,38 +441,6 @@ def arc_slerp(p, q, c, t):
     if t == like(t, 1.0):  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
         r = q
     return r
-
-
-@inline
-def slerp4_one(p, q, t):
-    """Plain great-arc slerp with one sincos: w1 = sin tθ/sin θ, w0 = cos tθ − cos θ·w1.
-
-    For the inner de Casteljau levels of the spline (short arcs). Near θ = π
-    the two terms of w0 cancel; the public :func:`slerp` keeps the two-sine form.
-    """
-    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
-    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
-    m2 = dw * dw + dx * dx + dy * dy + dz * dz
-    p2 = sw * sw + sx * sx + sy * sy + sz * sz
-    a = np.sqrt(m2)
-    b = np.sqrt(p2)
-    one = like(t, 1.0)
-    zero = like(t, 0.0)
-    th = like(t, 2.0) * half_arc(a, b)
-    # sin θ = 2ab/(a² + b²), cos θ = (b² − a²)/(a² + b²)
-    r = one / (like(t, 2.0) * a * b)
-    s, co = sincos(t * th)
-    w1 = s * (m2 + p2) * r
-    w0 = co - s * (p2 - m2) * r
-    w2 = zero
-    if a == zero:  # identical: the linear blend
-        w0, w1 = one - t, t
-    if b == zero:  # p = −q: the arc through p ⊗ i
-        w0, w1, w2 = co, zero, s
-    # t = 0 is exact already (sincos(0) = (0, 1)); t = 1 is made exact
-    if t == one:
-        w0, w1, w2 = zero, one, zero
-    return combine(p, q, (w0, w1, w2))
 
 
 @inline
@@ -614,9 +555,10 @@ def bezier_seg(q0, a, b, q1, c0, c1, c2, t):
     p01 = arc_slerp(q0, a, c0, t)
     p12 = arc_slerp(a, b, c1, t)
     p23 = arc_slerp(b, q1, c2, t)
-    p012 = slerp4_one(p01, p12, t)
-    p123 = slerp4_one(p12, p23, t)
-    return slerp4_one(p012, p123, t)
+    zero = like(t, 0.0)
+    p012 = slerp4(p01, p12, t, zero)
+    p123 = slerp4(p12, p23, t, zero)
+    return slerp4(p012, p123, t, zero)
 
 
 @inline
@@ -715,7 +657,7 @@ def _eval_squad(times, new_t, seg, out):
                 t = like(x0, (ld1(new_t, i) - t0) / h)
                 pq = arc_slerp(q0, q1, c0, t)
                 ps = arc_slerp(s0, s1, c1, t)
-                st4flat(out, i, slerp4_one(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t)))
+                st4flat(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
             j = e
 
 
