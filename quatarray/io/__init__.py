@@ -10,9 +10,11 @@ writers can be used on their own::
             w.write(chunk.data, chunk.t, chunk.pos)
 
 Formats: npy (memory-mapped, one chunk mapped at a time), csv with named
-columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH.
+columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH; whole BVH clips (every joint) with
+:func:`read_bvh` and :func:`write_bvh`.
 """
 
+from .bvh import read_bvh, write_bvh
 from .clean import Cleaner
 from .errors import DataError, UsageError
 from .formats import FORMATS, output_format
@@ -22,5 +24,5 @@ from .writers import check_output, open_writer
 
 __all__ = [
     "Chunk", "Cleaner", "DataError", "UsageError", "FORMATS", "DEFAULT_CHUNK", "open_stream",
-    "read_times", "open_writer", "check_output", "output_format", "concat", "rechunk",
+    "read_times", "read_bvh", "write_bvh", "open_writer", "check_output", "output_format", "concat", "rechunk",
 ]
