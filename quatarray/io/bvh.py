@@ -294,17 +294,19 @@ def exact_euler(q, order):
 
     :func:`quatarray.as_euler` follows scipy's gimbal-lock rule: within
     about 1e-7 rad of lock it sets the third angle to zero, which loses up to
-    2e-7 rad of the rotation. Here the first two angles come from
-    ``as_euler``; where ``from_euler`` of them does not give back the
-    rotation within 1e-13 rad, the third angle is recomputed from the
-    residual rotation r = (A(a) B(b))⁻¹ q, a rotation about the third axis
-    (up to the second-order error of the first two), as 2 atan2(r_axis, r_w).
+    2e-7 rad of the rotation. Its angles are kept where ``from_euler`` of them
+    gives back the rotation within 1e-13 rad; elsewhere (at and near lock)
+    the angles are solved so that each step leaves an exactly solvable rest:
+    with q = A(a) B(b) C(c) and v = q e_C, the first angle makes A(a) e_B
+    perpendicular to v (a = atan2(−v·e_B, v·(e_A × e_B)), ill-conditioned near
+    lock but with a residual of the order of the rounding), then b and c follow
+    from the two-axis rest A(a)⁻¹ q = B(b) C(c), which has no lock.
 
     Parameters
     ----------
     q : array_like, shape (N, 4)
     order : str
-        Intrinsic sequence, e.g. ``"ZXY"``.
+        Intrinsic sequence of three distinct axes, e.g. ``"ZXY"``.
 
     Returns
     -------
@@ -325,16 +327,36 @@ def exact_euler(q, order):
     ang = qa.as_euler(q, order, suppress_warnings=True)
     err = qa.distance(qa.from_euler(order, ang), q)
     fix = np.flatnonzero(~(err <= 1e-13))
-    if fix.size:
-        a = ang[fix].copy()
-        a[:, 2] = 0.0
-        ab = qa.from_euler(order, a)
-        r = qa.multiply(qa.conjugate(ab), q[fix])
-        k = 1 + "XYZ".index(order[2])
-        a[:, 2] = 2.0 * np.arctan2(r[:, k], r[:, 0])
-        a[:, 2] = (a[:, 2] + np.pi) % (2 * np.pi) - np.pi
-        ang[fix] = a
+    if not fix.size:
+        return ang
+    iA, iB, iC = ("XYZ".index(c) for c in order)
+    s = 1.0 if (iB - iA) % 3 == 1 else -1.0  # e_A × e_B = s e_C, e_B × e_C = s e_A
+    eye = np.eye(3)
+    r = q[fix]
+    v = qa.rotate(r, np.broadcast_to(eye[iC], (len(r), 3)))
+    a = np.arctan2(-v[:, iB], s * v[:, iC])
+    b = c = None
+    for _ in range(2):  # the branch of a that puts b in [−π/2, π/2]
+        rest = qa.multiply(_axis_quat(iA, -a), r)  # A(a)⁻¹ q = B(b) C(c)
+        w = qa.rotate(rest, np.broadcast_to(eye[iC], (len(r), 3)))
+        b = np.arctan2(s * w[:, iA], w[:, iC])
+        wide = np.abs(b) > np.pi / 2
+        if not wide.any():
+            break
+        a = np.where(wide, a + np.pi, a)
+        a = (a + np.pi) % (2 * np.pi) - np.pi
+    rc = qa.multiply(_axis_quat(iB, -b), rest)  # C(c)
+    c = 2.0 * np.arctan2(rc[:, 1 + iC], rc[:, 0])
+    c = (c + np.pi) % (2 * np.pi) - np.pi
+    ang[fix] = np.column_stack([a, b, c])
     return ang
+
+
+def _axis_quat(i, angle):
+    out = np.zeros((len(angle), 4))
+    out[:, 0] = np.cos(angle / 2)
+    out[:, 1 + i] = np.sin(angle / 2)
+    return out
 
 
 def _fmt(x):
