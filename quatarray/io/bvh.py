@@ -243,15 +243,19 @@ def _motion(buf, nch, name, first_line, frames, frames_line):
     if held.size == 0:
         raise DataError(f"{name}: no frames in the MOTION section")
     text = buf.decode("latin-1")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # numpy warns when it stops at a word that is not a number
-        vals = np.fromstring(text, dtype=np.float64, sep=" ")
-    if vals.size != held.size * nch:  # find the word numpy stopped at
-        k = vals.size
-        i = int(held[k // nch])
-        words = text.split("\n")[i].split()
-        bad = next((s for s in words if not _is_float(s)), words[k % nch])
-        raise _err(name, first_line + i, f"not a number: '{F.shown(bad)}'")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # older numpy warns and stops at a word that is not a number
+            vals = np.fromstring(text, dtype=np.float64, sep=" ")
+    except ValueError:  # newer numpy raises
+        vals = None
+    if vals is None or vals.size != held.size * nch:  # find the first word that is not a number
+        lines = text.split("\n")
+        for i in held:
+            bad = next((s for s in lines[i].split() if not _is_float(s)), None)
+            if bad is not None:
+                raise _err(name, first_line + int(i), f"not a number: '{F.shown(bad)}'")
+        raise DataError(f"{name}: the MOTION section could not be read as numbers")  # pragma: no cover
     return vals.reshape(held.size, nch), held + first_line
 
 
