@@ -185,7 +185,7 @@ class Clip:
         >>> from quatarray.demo import sample_path
         >>> clip = io.read_bvh(sample_path())
         >>> clip.resample(rate=120)
-        <Clip: 24 joints (5 end sites), 1817 frames at 120 fps>
+        <Clip: 24 joints (5 end sites), 1816 frames at 120 fps>
         """
         import quatarray as qa
 
@@ -203,13 +203,17 @@ class Clip:
             nt = np.asarray(times, dtype=np.float64).reshape(-1)
             frame_time = float(np.median(np.diff(nt))) if nt.size > 1 else self.frame_time
         J = len(self.joints)
-        rot = np.empty((nt.size, J, 4))
+        # joint-major storage: each joint's spline output is one contiguous copy;
+        # `rotations` is its (F, J, 4) view
+        rot = np.empty((J, nt.size, 4))
         for j in range(J):
             if self.orders[j]:
-                rot[:, j] = qa.spline(t, self.rotations[:, j], nt, method=method)
-            else:  # no rotation channels: the identity (or whatever constant the clip holds)
-                rot[:, j] = qa.normalize(self.rotations[0, j])
-        trans = np.broadcast_to(self.offsets, (nt.size, J, 3)).copy()
+                rot[j] = qa.spline(t, self.rotations[:, j], nt, method=method)
+            else:  # no rotation channels: the clip's constant rotation (the identity)
+                rot[j] = qa.normalize(self.rotations[0, j])
+        rot = rot.transpose(1, 0, 2)
+        trans = np.empty((nt.size, J, 3))
+        trans[:] = self.offsets
         pj = self.positional()
         if pj:
             if np.any(nt < t[0]) or np.any(nt > t[-1]):  # spline has already refused these
@@ -218,9 +222,8 @@ class Clip:
             k1 = np.minimum(k + 1, t.size - 1)
             h = t[k1] - t[k]
             u = np.divide(nt - t[k], h, out=np.zeros_like(nt), where=h > 0)[:, None, None]
-            a = self.translations[k][:, pj]
-            b = self.translations[k1][:, pj]
-            trans[:, pj] = (1.0 - u) * a + u * b
+            tp = self.translations[:, pj]  # (F, P, 3): only the joints that move
+            trans[:, pj] = (1.0 - u) * tp[k] + u * tp[k1]
         return self.replace(rotations=rot, translations=trans, frame_time=frame_time, times=nt)
 
     def tree(self):

@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from . import formats as F
-from .errors import DataError
+from .errors import DataError, UsageError
 
 END_SUFFIX = "_End"
 MAX_DEGREES = 1e9  # as the stream reader: beyond this an angle has no precision left
@@ -480,3 +480,51 @@ def _write_rows(f, m):
                      names=[f"c{k}" for k in range(m.shape[1])])
     opts = pcsv.WriteOptions(include_header=False, delimiter=" ", quoting_style="none", batch_size=1 << 14)
     pcsv.write_csv(table, f, write_options=opts)
+
+
+def write_positions(path, clip, fmt=None):
+    """World joint positions of every frame: npy ``(F, J, 3)``, or csv/parquet with
+    columns ``t joint x y z`` (one row per frame × joint, frames in order, joints
+    in clip order). Written beside `path` and renamed at the end.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> from quatarray import io
+    >>> from quatarray.demo import sample_path
+    >>> out = os.path.join(tempfile.mkdtemp(), "p.npy")
+    >>> io.bvh.write_positions(out, io.read_bvh(sample_path()))
+    >>> np.load(out).shape
+    (455, 24, 3)
+    """
+    from .writers import Writer
+
+    fmt = fmt or F.output_format(path)
+    _, p = clip.world()
+    F_, J = p.shape[:2]
+    with Writer(path) as w:
+        if fmt == "npy":
+            with open(w.tmp, "wb") as f:
+                np.save(f, p)
+            return
+        if fmt not in ("csv", "parquet"):
+            raise UsageError(f"{path}: positions are written as .npy, .csv or .parquet")
+        import pyarrow as pa
+
+        names = pa.DictionaryArray.from_arrays(np.tile(np.arange(J, dtype=np.int32), F_), pa.array(clip.joints))
+        flat = p.reshape(-1, 3)
+        table = pa.table([pa.array(np.repeat(clip.times, J)), names] + [pa.array(flat[:, k]) for k in range(3)],
+                         names=["t", "joint", "x", "y", "z"])
+        if fmt == "parquet":
+            import pyarrow.parquet as pq
+
+            pq.write_table(table, w.tmp)
+        else:
+            import pyarrow.csv as pcsv
+
+            plain = not any(set(j) & set(',"\n\r') for j in clip.joints)
+            opts = pcsv.WriteOptions(quoting_style="none" if plain else "needed", quoting_header="none",
+                                     batch_size=1 << 16)
+            pcsv.write_csv(table.cast(pa.schema([("t", pa.float64()), ("joint", pa.string()), ("x", pa.float64()),
+                                                 ("y", pa.float64()), ("z", pa.float64())])), w.tmp,
+                           write_options=opts)
