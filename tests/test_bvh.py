@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 import pytest
-from test_skeleton import ORDERS, pos_ch, rot_ch, six_orders_file, write_text_bvh
+from test_skeleton import ORDERS, pos_ch, rot_ch, six_orders_file
 
 import quatarray as qa
 from quatarray import io

@@ -6,7 +6,6 @@ import itertools
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -224,7 +223,7 @@ def test_world_cold_compile_time(tmp_path):
     )
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
-    assert float(out.stdout) < 3.0, out.stdout
+    assert float(out.stdout) < 3.0, out.stdout  # measured about 0.85 s
 
 
 # --------------------------------------------------------------------------
