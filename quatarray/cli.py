@@ -26,7 +26,8 @@ from .io import (
 from .io.formats import FORMATS
 
 METHODS = ("bezier", "slerp", "nlerp", "squad")
-TARGETS = "quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic)"
+TARGETS = ("quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic), "
+           "positions (world joint positions of a BVH clip: npy (F, J, 3), csv/parquet t joint x y z)")
 QUAT_FIELDS = ["qw", "qx", "qy", "qz"]
 _PIECE = 1 << 16  # rows per kernel call in convert (see cmd_convert)
 
@@ -136,6 +137,8 @@ def gimbal_note(name, locked, err):
 
 
 def cmd_convert(args):
+    if args.to == "positions":
+        return _clip_positions(args)
     if args.scheduler:
         return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
                           layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
@@ -283,6 +286,8 @@ def timed_chunks(reader, in_rate, in_times=None):
 
 
 def cmd_resample(args):
+    if _is_bvh(args, args.IN) and os.path.splitext(args.OUT)[1].lower() == ".bvh":
+        return _resample_clip(args)
     if args.scheduler:
         if args.in_times:
             raise UsageError("--in-times is not available with --scheduler; give --in-rate HZ")
@@ -611,8 +616,66 @@ def cmd_info(args):
     width = max(len(k) for k, _ in lines)
     for k, v in lines:
         print(f"{k + ':':<{width + 1}} {v}")
+    if reader.format == "bvh":
+        _clip_tree(args)
     reader.say(sys.stderr)
     return 0
+
+
+# --------------------------------------------------------------------------
+# whole BVH clips (every joint): resample BVH -> BVH, convert --to positions, info's tree
+
+
+def _is_bvh(args, path):
+    from .io.formats import by_extension
+
+    return args.format == "bvh" or (args.format == "auto" and by_extension(path) == "bvh")
+
+
+def _read_clip(args):
+    from .io import read_bvh
+
+    if not _is_bvh(args, args.IN):
+        raise UsageError(f"{args.IN}: a whole clip is read from a BVH file")
+    return read_bvh(args.IN)
+
+
+def _resample_clip(args):
+    if args.scheduler or args.in_rate is not None or args.in_times:
+        raise UsageError("a BVH clip is resampled in memory: --scheduler, --in-rate and --in-times do not apply")
+    from .io import write_bvh
+
+    check_output(args.OUT, [args.IN] + ([args.times] if args.times else []), args.force)
+    clip = _read_clip(args)
+    times = None
+    if args.times:
+        times = _FileTimes(args.times, "auto").times
+    if clip.frames < 2:
+        raise DataError(f"{args.IN}: resampling needs at least 2 frames, got {clip.frames}")
+    try:
+        out = clip.resample(rate=args.rate, times=times, method=args.method)
+    except ValueError as exc:
+        raise _lib_error(args.times or args.IN, exc) from None
+    write_bvh(args.OUT, out)
+    return 0
+
+
+def _clip_positions(args):
+    from .io.bvh import write_positions
+
+    check_output(args.OUT, [args.IN], args.force)
+    clip = _read_clip(args)
+    write_positions(args.OUT, clip)
+    return 0
+
+
+def _clip_tree(args):
+    clip = _read_clip(args)
+    print(f"hierarchy: {len(clip.joints)} joints ({int(clip.ends.sum())} end sites, "
+          f"{int((clip.parents < 0).sum())} root{'s' if (clip.parents < 0).sum() != 1 else ''}), "
+          "channel order (intrinsic Euler) of each")
+    for line in clip.tree():
+        print(f"  {line}")
 
 
 # --------------------------------------------------------------------------

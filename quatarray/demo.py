@@ -10,9 +10,13 @@ The sample is a motion-capture walk (``quatarray/data/mocapbank_walk.bvh``,
    how far apart the two curves are;
 4. holds back every other frame, predicts the held-back frames from the rest
    with both methods and reports the error of each against the recording;
+   also as world joint positions (forward kinematics of the whole clip,
+   :func:`quatarray.io.read_bvh`, :meth:`quatarray.skeleton.Clip.world`);
 5. writes the 120 fps root stream (time, position, quaternion) as CSV for both
-   methods, all joints as one CSV, a JSON summary and, where matplotlib is
-   installed, a PNG of the root before and after resampling;
+   methods, all joints as one CSV, the whole clip at 120 fps as BVH
+   (``walk_120fps.bvh``), a JSON summary and, where matplotlib is installed,
+   PNGs of the root before and after resampling and of a few joints' world
+   trajectories;
 6. times the resampling on a long stream (the root walk repeated to 250 000 keys) to
    show the throughput.
 """
@@ -28,6 +32,8 @@ import numpy as np
 SAMPLE = "mocapbank_walk.bvh"
 RATE = 120.0
 LONG_KEYS = 250_000
+UNIT_CM = 1.0  # the sample's lengths are centimetres (quatarray/data/README.md)
+TRACKED = ("Hips", "Head_End", "LeftWrist_End", "RightAnkle_End")
 
 
 def sample_path():
@@ -89,7 +95,7 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
     import quatarray as qa
 
     from . import io
-    from .plot import have_matplotlib, plot_streams
+    from .plot import have_matplotlib, plot_streams, plot_trajectories
 
     out = stream or sys.stdout
     if out_dir is None:
@@ -145,6 +151,17 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
             err[m].append(_deg(qa.distance(qa.spline(kt, keys, ht, method=m), truth)))
     hold = {m: _stats(np.concatenate(v)) for m, v in err.items()}
     hold_root = {m: _stats(v[0]) for m, v in err.items()}
+    # ... and as world joint positions: every joint of the whole clip (End Sites included)
+    # by forward kinematics, keys = even frames resampled at the odd frames' times
+    t0 = time.perf_counter()
+    clip = io.read_bvh(src)
+    truth_p = clip.world()[1][1::2][inside]
+    even = clip.replace(rotations=clip.rotations[0::2], translations=clip.translations[0::2], times=clip.times[0::2])
+    hold_pos = {}
+    for m in ("bezier", "slerp"):
+        d = np.linalg.norm(even.resample(times=ht, method=m).world()[1] - truth_p, axis=2)
+        hold_pos[m] = _stats(d * UNIT_CM)
+    t_clip = time.perf_counter() - t0
 
     # 5. write
     files = []
@@ -162,6 +179,14 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
         w.write(np.concatenate([bez[j] for j in joints], axis=1), new_t)
     files.append(path)
 
+    # the whole clip at the new rate, every joint, as BVH
+    t0 = time.perf_counter()
+    clip_new = clip.resample(rate=rate)
+    path = os.path.join(out_dir, f"walk_{int(rate)}fps.bvh")
+    io.write_bvh(path, clip_new)
+    t_bvh = time.perf_counter() - t0
+    files.append(path)
+
     plot_note = None
     # the root, and the joint where the two methods differ most
     busiest = max(joints, key=lambda j: float(np.max(qa.distance(bez[j], slp[j]))))
@@ -176,6 +201,14 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
                 labels=(f"keys {fps:.0f} fps", f"Bézier {int(rate)} fps"),
             )
             files.append(png)
+        # a few joints' world trajectories: keys (30 fps) and the 120 fps clip
+        show = [clip.joints.index(j) for j in TRACKED if j in clip.joints] or [0]
+        png = os.path.join(out_dir, "walk_trajectories.png")
+        plot_trajectories(png, clip.times, clip.world()[1][:, show], [clip.joints[k] for k in show],
+                          after=(clip_new.times, clip_new.world()[1][:, show]),
+                          title=f"{SAMPLE}: world trajectories, {fps:.0f} fps frames (dots), "
+                                f"Bézier {int(rate)} fps clip (line)")
+        files.append(png)
     else:
         plot_note = "plot skipped: matplotlib is not installed (pip install matplotlib)"
 
@@ -210,7 +243,9 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
         "bezier_at_keys_max_deg": at_keys,
         "holdout_all_joints_deg": hold,
         "holdout_root_deg": hold_root,
-        "seconds": {"read": t_read, "unflip": t_unflip, "bezier": t_bez, "slerp": t_slp},
+        "holdout_world_positions_cm": hold_pos,
+        "seconds": {"read": t_read, "unflip": t_unflip, "bezier": t_bez, "slerp": t_slp, "clip_holdout": t_clip,
+                    "clip_resample_write": t_bvh},
         "long_stream": long,
         "files": [os.path.abspath(f) for f in files],
     }
@@ -236,6 +271,11 @@ def run(out_dir=None, rate=RATE, long_keys=LONG_KEYS, stream=None):
         a, r = hold[m], hold_root[m]
         p(f"    {m:<7} all joints: mean {a['mean']:.3f}°, rms {a['rms']:.3f}°, max {a['max']:.2f}°   "
           f"root: mean {r['mean']:.3f}°, max {r['max']:.2f}°")
+    p(f"    as world joint positions ({len(clip.joints)} joints incl. End Sites, forward kinematics; "
+      "file units = cm):")
+    for m in ("bezier", "slerp"):
+        a = hold_pos[m]
+        p(f"    {m:<7} mean {a['mean']:.3f} cm, rms {a['rms']:.3f} cm, max {a['max']:.2f} cm")
     ratio = hold["slerp"]["rms"] / hold["bezier"]["rms"]
     p(f"    -> Bézier's rms error is {ratio:.2f}× smaller than slerp's" if ratio >= 1 else
       f"    -> slerp's rms error is {1 / ratio:.2f}× smaller than Bézier's")

@@ -236,3 +236,61 @@ def plot_file(in_path, out_png, fmt="auto", layout=None, joint=None, chunk=None,
     plot_streams(out_png, t, q, seq=seq or file_seq, after=second, title=title,
                  labels=("original", "resampled"))
     return 0
+
+
+def plot_trajectories(out_png, t, p, names, after=None, title="", up=1):
+    """World trajectories of a few joints: height over time and the ground-plane path.
+
+    Parameters
+    ----------
+    out_png : str
+    t : ndarray (F,)
+        Frame times (s).
+    p : ndarray (F, k, 3)
+        World positions of the k joints drawn.
+    names : list of str
+        The k joint names.
+    after : (t2, p2), optional
+        A resampled version (``(F2, k, 3)``) drawn as lines over the frames (dots).
+    up : int
+        Index of the vertical axis (BVH: y, 1).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 8), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_h, ax_g = fig.subplots(2, 1, height_ratios=[1, 1.2])
+    ground = [k for k in range(3) if k != up]
+    for k, name in enumerate(names):
+        color = f"C{k}"
+        style = dict(ls="", marker="o", ms=2) if after is not None else dict(lw=1.0)
+        ax_h.plot(t, p[:, k, up], color=color, label=name, **style)
+        ax_g.plot(p[:, k, ground[0]], p[:, k, ground[1]], color=color, label=name, **style)
+        if after is not None:
+            t2, p2 = after
+            ax_h.plot(t2, p2[:, k, up], color=color, lw=0.9)
+            ax_g.plot(p2[:, k, ground[0]], p2[:, k, ground[1]], color=color, lw=0.9)
+    axis = "XYZ"
+    ax_h.set_xlabel("time (s)")
+    ax_h.set_ylabel(f"height ({axis[up]}, file units)")
+    ax_g.set_xlabel(axis[ground[0]])
+    ax_g.set_ylabel(axis[ground[1]])
+    ax_g.set_aspect("equal", adjustable="datalim")
+    ax_h.set_title("world joint positions: frames (dots), resampled (line)" if after is not None
+                   else "world joint positions", fontsize=9)
+    for ax in (ax_h, ax_g):
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    folder, base = os.path.split(os.path.abspath(out_png))
+    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".png", dir=folder)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format="png")
+        os.replace(tmp, out_png)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return out_png

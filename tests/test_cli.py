@@ -905,3 +905,62 @@ def test_tum_output_refusals_say_what_is_wrong(capsys, tmp_path):
     rc, _, err = cli(capsys, "unflip", tmp_path / "q.npy", tmp_path / "o.tum")
     assert rc == 2 and "needs times and positions; this stream has no times and no positions" in err
     assert _leftovers(tmp_path) == []
+
+
+# whole BVH clips (issue 17)
+
+
+def test_resample_bvh_clip_every_joint(capsys, tmp_path):
+    from quatarray import io
+    from quatarray.demo import sample_path
+
+    out = tmp_path / "w120.bvh"
+    rc, _, err = cli(capsys, "resample", sample_path(), out, "--rate", 120)
+    assert rc == 0, err
+    clip, back = io.read_bvh(sample_path()), io.read_bvh(out)
+    ref = clip.resample(rate=120)
+    assert back.joints == clip.joints and back.frames == ref.frames and back.frame_time == 1 / 120
+    assert qa.distance(back.rotations, ref.rotations).max() < 1e-9
+    np.testing.assert_allclose(back.world()[1], ref.world()[1], rtol=0, atol=1e-9)
+    rc, _, err = cli(capsys, "resample", sample_path(), tmp_path / "s.bvh", "--rate", 60, "--method", "slerp")
+    assert rc == 0, err
+
+
+def test_convert_bvh_to_positions(capsys, tmp_path):
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    from quatarray import io
+    from quatarray.demo import sample_path
+
+    clip = io.read_bvh(sample_path())
+    _, p = clip.world()
+    for name in ("p.npy", "p.csv", "p.parquet"):
+        rc, _, err = cli(capsys, "convert", sample_path(), tmp_path / name, "--to", "positions")
+        assert rc == 0, err
+    np.testing.assert_array_equal(np.load(tmp_path / "p.npy"), p)
+    for table in (pcsv.read_csv(tmp_path / "p.csv"), pq.read_table(tmp_path / "p.parquet")):
+        assert table.column_names == ["t", "joint", "x", "y", "z"]
+        assert table.num_rows == clip.frames * len(clip.joints)
+        assert [str(j) for j in table.column("joint").to_pylist()[:2]] == ["Hips", "Chest"]
+        xyz = np.column_stack([table.column(c).to_numpy() for c in "xyz"])
+        np.testing.assert_array_equal(xyz, p.reshape(-1, 3))
+        np.testing.assert_array_equal(table.column("t").to_numpy()[::len(clip.joints)], clip.times)
+    rc, _, err = cli(capsys, "convert", tmp_path / "p.npy", tmp_path / "x.npy", "--to", "positions")
+    assert rc == 2 and "BVH" in err
+
+
+def test_info_bvh_lists_hierarchy(capsys, data_dir):
+    rc, out, err = cli(capsys, "info", data_dir / "free_mocap.bvh")
+    assert rc == 0, err
+    assert "rows:" in out and "hierarchy: 70 joints (15 end sites, 1 root)" in out
+    assert "\n  mixamorig:Hips  ZYX + XYZ position\n    mixamorig:Spine  ZYX\n" in out
+
+
+def test_resample_bad_bvh_clip_one_line(tmp_path):
+    path = tmp_path / "bad.bvh"
+    path.write_text("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n}\n"
+                    "MOTION\nFrames: 2\nFrame Time: 0.1\n1 2 3\n1 2\n")
+    r = run("resample", path, tmp_path / "out.bvh", "--rate", 100)
+    assert r.returncode == 1 and r.stderr == f"{path}:11: expected 3 numbers, got 2\n"
+    assert not (tmp_path / "out.bvh").exists()

@@ -161,3 +161,19 @@ def test_bench_run_small(tmp_path):
 def test_bench_rejects_bad_n():
     with pytest.raises(ValueError, match="`n`"):
         bench.run(n=0)
+
+
+def test_demo_clip_outputs(demo_run):
+    """Hold-out test as world joint positions, the 120 fps BVH, the trajectory plot."""
+    from quatarray import io
+
+    out, text, s = demo_run
+    pos = s["holdout_world_positions_cm"]
+    assert 0 < pos["bezier"]["rms"] < pos["slerp"]["rms"] and pos["bezier"]["max"] < 5
+    assert "cm" in text
+    clip = io.read_bvh(out / "walk_120fps.bvh")
+    ref = io.read_bvh(demo.sample_path()).resample(rate=120)
+    assert clip.frames == s["samples_per_joint"] and clip.joints == ref.joints
+    assert qa.distance(clip.rotations, ref.rotations).max() < 1e-9
+    if plot.have_matplotlib():
+        assert (out / "walk_trajectories.png").read_bytes()[:8] == PNG

@@ -10,9 +10,11 @@ writers can be used on their own::
             w.write(chunk.data, chunk.t, chunk.pos)
 
 Formats: npy (memory-mapped, one chunk mapped at a time), csv with named
-columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH.
+columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH; whole BVH clips (every joint) with
+:func:`read_bvh` and :func:`write_bvh`.
 """
 
+from .bvh import read_bvh, write_bvh
 from .clean import Cleaner
 from .errors import DataError, OutputError, UsageError
 from .formats import FORMATS, output_format
@@ -22,6 +24,6 @@ from .writers import Writer, check_output, open_writer, output_mode
 
 __all__ = [
     "Chunk", "Cleaner", "DataError", "OutputError", "UsageError", "Writer", "FORMATS", "DEFAULT_CHUNK",
-    "open_stream", "read_times", "open_writer", "check_output", "output_mode", "output_format", "concat",
-    "rechunk",
+    "open_stream", "read_times", "read_bvh", "write_bvh", "open_writer", "check_output", "output_mode",
+    "output_format", "concat", "rechunk",
 ]
