@@ -29,7 +29,7 @@ formed: with E = (R, t), ‖E − I‖_F² = ‖R − I‖_F² + ‖t‖² = 8 s
 θ the rotation angle of R.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -44,7 +44,8 @@ STATISTICS = ("rmse", "mean", "median", "std", "min", "max", "sse")
 UNITS = {"trans": "m", "rot": "deg", "full": "1"}
 
 
-class Poses(NamedTuple):
+@dataclass(frozen=True)
+class Poses:
     """A pose stream: times (or None), positions (N, 3), quaternions (N, 4) as (w, x, y, z)."""
 
     t: np.ndarray
@@ -53,6 +54,10 @@ class Poses(NamedTuple):
 
     def __len__(self):
         return self.pos.shape[0]
+
+    def replace(self, **kw):
+        """A copy with some fields replaced."""
+        return replace(self, **kw)
 
     def take(self, idx):
         """The poses at `idx` (an index array or slice)."""
@@ -294,7 +299,7 @@ class Alignment(NamedTuple):
 IDENTITY = Alignment(np.eye(3), np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0)
 
 
-def umeyama(x, y, with_scale=True):
+def umeyama(x, y=None, with_scale=True):
     """Umeyama's least-squares similarity taking points `x` onto points `y`.
 
     Minimises Σ |y_i − (s R x_i + t)|² (with s = 1 unless `with_scale`), as
@@ -620,6 +625,8 @@ class Result:
         Reference time of each error (RPE: of the pair's second pose).
     index : ndarray
         Index of each error's pose in the associated streams (RPE: the second of the pair).
+    i0 : ndarray or None
+        RPE: index of the pair's first pose.
     ref, est : Poses
         The associated reference and the aligned estimate.
     alignment : Alignment
@@ -630,6 +637,7 @@ class Result:
     errors: np.ndarray
     t: np.ndarray
     index: np.ndarray
+    i0: np.ndarray
     ref: Poses
     est: Poses
     alignment: Alignment
@@ -682,8 +690,8 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
     est = _moved(est, a)
     if metric == "ape":
         errors = ape(ref, est, relation)
-        index = np.arange(errors.size)
+        index, i0 = np.arange(errors.size), None
     else:
-        errors, _, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
+        errors, i0, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
     t = None if ref.t is None else ref.t[index]
-    return Result(statistics(errors), errors, t, index, ref, est, a, metric, relation, UNITS[relation])
+    return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])
