@@ -103,6 +103,26 @@ def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", er
     return T.Poses(t, np.ascontiguousarray(whole.pos, dtype=np.float64), np.ascontiguousarray(whole.data, np.float64))
 
 
+def _read_both(ref_path, est_path, err, **kw):
+    """Both streams, read in two threads (the text parser releases the GIL); their notes
+    go to `err` in order, reference first."""
+    import io as _io
+    from concurrent.futures import ThreadPoolExecutor
+
+    notes = [_io.StringIO(), _io.StringIO()]
+    with ThreadPoolExecutor(2) as pool:
+        jobs = [pool.submit(read_poses, p, err=n, **kw) for p, n in zip((ref_path, est_path), notes)]
+        try:
+            ref = jobs[0].result()
+        finally:
+            err.write(notes[0].getvalue())
+        try:
+            est = jobs[1].result()
+        finally:
+            err.write(notes[1].getvalue())
+    return ref, est
+
+
 # --------------------------------------------------------------------------
 # reporting
 
@@ -230,8 +250,8 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
                    all_pairs=all_pairs, n_to_align=n_to_align, t_max_diff=t_max_diff, t_offset=t_offset,
                    interpolate=interpolate)
     if True:
-        ref = read_poses(ref_path, fmt, layout, chunk, on_invalid, stderr)
-        est = read_poses(est_path, fmt, layout, chunk, on_invalid, stderr)
+        ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
+                              on_invalid=on_invalid)
         try:
             result = T.evaluate(ref, est, **options)
         except ValueError as exc:
