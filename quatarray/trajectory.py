@@ -202,7 +202,7 @@ def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
     if i_ref.size == 0:
         raise ValueError(f"no matching times between the reference and the estimate with "
                          f"t_max_diff {t_max_diff} s and t_offset {t_offset} s")
-    return ref.take(i_ref), est.take(i_est)
+    return ref.take(_as_slice(i_ref)), est.take(_as_slice(i_est))
 
 
 def _resample(ref, est, t_offset):
@@ -581,14 +581,24 @@ def rpe(ref, est, relation="trans", delta=1, delta_unit="frames", all_pairs=Fals
 
     _relation(relation)
     i, j = pairs(est, delta, delta_unit, all_pairs, rel_delta_tol)
+    si, sj = _as_slice(i), _as_slice(j)  # pairs in frames: strided views, no copies
 
     def relative(p):  # p_i⁻¹ p_j: rotation q_i* q_j, translation R_i^T (x_j − x_i)
-        qi = qa.conjugate(p.q[i])
-        return qa.multiply(qi, p.q[j]), qa.rotate(qi, p.pos[j] - p.pos[i])
+        qi = qa.conjugate(p.q[si])
+        return qa.multiply(qi, p.q[sj]), qa.rotate(qi, p.pos[sj] - p.pos[si])
 
     q_ref, t_ref = relative(ref)
     q_est, t_est = relative(est)
     return _errors(relation, t_est - t_ref, q_ref, q_est), i, j
+
+
+def _as_slice(idx):
+    """`idx` as a slice when it is an arithmetic progression, else itself."""
+    if idx.size > 1:
+        step = int(idx[1] - idx[0])
+        if step > 0 and np.all(np.diff(idx) == step):
+            return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
 
 
 def statistics(errors):
