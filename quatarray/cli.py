@@ -590,11 +590,9 @@ def cmd_bench(args):
 
 
 def cmd_eval(args):
-    if args.delta_unit == "frames" and args.delta != int(args.delta):
-        raise UsageError(f"--delta in frames must be a whole number, got {args.delta}")
     return int(_optional("evaluate", "eval").run(
         args.REF, args.EST, metric=args.metric, align=args.align, relation=args.pose_relation,
-        delta=int(args.delta) if args.delta_unit == "frames" else args.delta, delta_unit=args.delta_unit,
+        delta=args.delta, delta_unit=args.delta_unit,
         all_pairs=args.all_pairs, n_to_align=args.n_to_align, t_max_diff=args.t_max_diff,
         t_offset=args.t_offset, interpolate=args.interpolate, out=args.out, plot_path=args.plot,
         json_path=args.json, fmt=args.format, layout=args.layout, chunk=args.chunk,
@@ -722,7 +720,7 @@ def build_parser():
 
     s = sub.add_parser("eval", parents=[io_opts], help="compare an estimated pose stream with a reference (APE, RPE) as evo does",
                        description="Pose arrays (.npy/.zarr, (N, 8) rows t x y z qw qx qy qz, or (N, 7) without t) "
-                                   "are evaluated in chunks of --chunk rows.")
+                                   "are read as pose streams too (into memory).")
     s.add_argument("REF")
     s.add_argument("EST")
     s.add_argument("--metric", choices=("ape", "rpe"), default="ape", help="absolute or relative pose error (default ape)")

@@ -6,7 +6,8 @@ csv/parquet with columns ``t x y z qw qx qy qz``), and pose arrays:
 ``.npy`` / ``.zarr`` pose arrays
     float arrays of shape ``(N, 8)``: ``t x y z qw qx qy qz`` a row, or
     ``(N, 7)``: ``x y z qw qx qy qz`` (no times: compared pose by pose).
-    These are evaluated in chunks of ``--chunk`` rows (see :func:`evaluate_arrays`).
+    These are read whole (memory-mapped, then copied); chunked evaluation of
+    streams larger than memory is not implemented yet.
 
 The job prints the statistics, and on request writes them as JSON
 (``json_path``), the per-pose errors with their times (``out``: csv or parquet
@@ -238,6 +239,8 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
     stderr = stderr or sys.stderr
     if metric == "rpe" and delta_unit == "frames" and int(delta) != delta:
         raise UsageError(f"--delta in frames must be a whole number, got {delta}")
+    if metric == "rpe" and delta_unit == "frames":
+        delta = int(delta)
     for o in (out, plot_path, json_path):
         if o is not None:
             check_output(o, [ref_path, est_path], force)
@@ -249,17 +252,16 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
     options = dict(metric=metric, align=align, relation=relation, delta=delta, delta_unit=delta_unit,
                    all_pairs=all_pairs, n_to_align=n_to_align, t_max_diff=t_max_diff, t_offset=t_offset,
                    interpolate=interpolate)
-    if True:
-        ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
-                              on_invalid=on_invalid)
-        try:
-            result = T.evaluate(ref, est, **options)
-        except ValueError as exc:
-            raise DataError(f"{est_path} against {ref_path}: {str(exc).splitlines()[0]}") from None
-        if out is not None:
-            write_errors(out, result)
-        if plot_path is not None:
-            plot(plot_path, result, ref_path, est_path)
+    ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
+                          on_invalid=on_invalid)
+    try:
+        result = T.evaluate(ref, est, **options)
+    except ValueError as exc:
+        raise DataError(f"{est_path} against {ref_path}: {str(exc).splitlines()[0]}") from None
+    if out is not None:
+        write_errors(out, result)
+    if plot_path is not None:
+        plot(plot_path, result, ref_path, est_path)
     head = title(result, align, n_to_align, delta, delta_unit, all_pairs)
     report(result, head, stdout)
     if json_path is not None:
