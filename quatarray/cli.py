@@ -705,6 +705,16 @@ def cmd_bench(args):
     return int(_optional("bench", "bench").run(n=args.n, json_path=args.json) or 0)
 
 
+def cmd_eval(args):
+    return int(_optional("evaluate", "eval").run(
+        args.REF, args.EST, metric=args.metric, align=args.align, relation=args.pose_relation,
+        delta=args.delta, delta_unit=args.delta_unit,
+        all_pairs=args.all_pairs, n_to_align=args.n_to_align, t_max_diff=args.t_max_diff,
+        t_offset=args.t_offset, interpolate=args.interpolate, out=args.out, plot_path=args.plot,
+        json_path=args.json, fmt=args.format, layout=args.layout, chunk=args.chunk,
+        on_invalid=args.on_invalid, force=args.force) or 0)
+
+
 def cmd_plot(args):
     mod = _optional("plot", "plot")
     if args.seq is not None:
@@ -826,6 +836,30 @@ def build_parser():
     s.add_argument("--n", type=_rows, default=None, metavar="N", help="batch size")
     s.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     s.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("eval", parents=[io_opts], help="compare an estimated pose stream with a reference (APE, RPE) as evo does",
+                       description="Pose arrays (.npy/.zarr, (N, 8) rows t x y z qw qx qy qz, or (N, 7) without t) "
+                                   "are read as pose streams too (into memory).")
+    s.add_argument("REF")
+    s.add_argument("EST")
+    s.add_argument("--metric", choices=("ape", "rpe"), default="ape", help="absolute or relative pose error (default ape)")
+    s.add_argument("--align", choices=("none", "se3", "sim3", "scale"), default="none",
+                   help="Umeyama alignment of the estimate (default none)")
+    s.add_argument("--pose-relation", choices=("trans", "rot", "full"), default="trans",
+                   help="translation (m), rotation angle (deg) or full pose ‖E − I‖ (default trans)")
+    s.add_argument("--delta", type=_positive, default=1, metavar="N", help="RPE pair distance (default 1)")
+    s.add_argument("--delta-unit", choices=("frames", "m", "s"), default="frames", help="unit of --delta")
+    s.add_argument("--all-pairs", action="store_true", help="RPE on all pairs, not consecutive ones")
+    s.add_argument("--n-to-align", type=_rows, metavar="N", help="fit the alignment on the first N poses")
+    s.add_argument("--t-max-diff", type=_positive, default=0.01, metavar="S",
+                   help="largest time difference of an associated pair (default 0.01 s)")
+    s.add_argument("--t-offset", type=float, default=0.0, metavar="S", help="added to the estimate's times")
+    s.add_argument("--interpolate", action="store_true",
+                   help="resample the estimate at the reference times instead of nearest pairs")
+    s.add_argument("--out", metavar="ERRORS", help="per-pose errors with times (csv, parquet)")
+    s.add_argument("--plot", metavar="OUT.png", help="errors over time and the aligned trajectories (needs matplotlib)")
+    s.add_argument("--json", metavar="FILE", help="the statistics as JSON")
+    s.set_defaults(func=cmd_eval)
 
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")

@@ -1,0 +1,271 @@
+"""``quatarray eval``: read two pose streams, evaluate them (:mod:`quatarray.trajectory`), report.
+
+Inputs are read with the same readers as the other verbs (TUM, EuRoC, KITTI,
+csv/parquet with columns ``t x y z qw qx qy qz``), and pose arrays:
+
+``.npy`` / ``.zarr`` pose arrays
+    float arrays of shape ``(N, 8)``: ``t x y z qw qx qy qz`` a row, or
+    ``(N, 7)``: ``x y z qw qx qy qz`` (no times: compared pose by pose).
+    These are read whole (memory-mapped, then copied); chunked evaluation of
+    streams larger than memory is not implemented yet.
+
+The job prints the statistics, and on request writes them as JSON
+(``json_path``), the per-pose errors with their times (``out``: csv or parquet
+with columns ``t`` (when the reference has times), ``pose`` (RPE: ``pose0``,
+``pose``), ``error``) and a plot (errors over time, aligned trajectories).
+"""
+
+import json
+import os
+import sys
+
+import numpy as np
+
+from . import trajectory as T
+from .io import Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer
+
+TITLES = {"trans": "translation part", "rot": "rotation angle", "full": "full transformation"}
+ALIGN_TITLES = {"none": "not aligned", "se3": "SE(3) Umeyama alignment", "sim3": "Sim(3) Umeyama alignment",
+                "scale": "scale corrected"}
+
+
+# --------------------------------------------------------------------------
+# reading
+
+
+def pose_array(path, name=None):
+    """A memory-mapped (npy) or lazy (zarr) pose array ``(N, 8)`` or ``(N, 7)``, or None if `path`
+    is not an npy/zarr file of that shape."""
+    from .io.formats import is_zarr
+
+    name = name or path
+    if is_zarr(path):
+        from .io.readers import import_zarr
+
+        arr = import_zarr(name).open_array(path, mode="r")
+    elif str(path).lower().endswith(".npy") and os.path.isfile(path):
+        try:
+            arr = np.load(path, mmap_mode="r")
+        except (ValueError, OSError, EOFError):
+            return None
+    else:
+        return None
+    if len(arr.shape) == 2 and arr.shape[1] in (7, 8) and np.dtype(arr.dtype).kind == "f":
+        if arr.shape[0] == 0:
+            raise DataError(f"{name}: no rows")
+        return arr
+    return None
+
+
+def _poses_of_rows(rows, name, row0=0):
+    """Poses from rows of a pose array (checked: finite, non-zero quaternions)."""
+    import quatarray as qa
+
+    rows = np.asarray(rows, dtype=np.float64)
+    k = rows.shape[1] - 7
+    bad = ~np.all(np.isfinite(rows), axis=1) | ~np.any(rows[:, k + 3:] != 0, axis=1)
+    if bad.any():
+        r = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{name}: row {row0 + r}: not a pose (a non-finite number or a zero quaternion)")
+    t = rows[:, 0].copy() if k else None
+    return T.Poses(t, np.ascontiguousarray(rows[:, k:k + 3]), qa.normalize(np.ascontiguousarray(rows[:, k + 3:])))
+
+
+def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", err=None):
+    """The whole pose stream of a file as :class:`~quatarray.trajectory.Poses`.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from quatarray.evaluate import read_poses
+    >>> path = os.path.join(tempfile.mkdtemp(), "traj.txt")
+    >>> _ = open(path, "w").write("# t x y z qx qy qz qw\\n0 1 2 3 0 0 0 1\\n0.1 1 2 3 0 0 1 0\\n")
+    >>> p = read_poses(path, "tum")
+    >>> p.t, p.q[1]
+    (array([0. , 0.1]), array([0., 0., 0., 1.]))
+    """
+    arr = pose_array(path) if fmt in ("auto", "npy") else None
+    if arr is not None:
+        return _poses_of_rows(arr[:], path)
+    kw = {} if chunk is None else {"chunk": chunk}
+    reader = open_stream(path, fmt, kind="quat", layout=layout, on_invalid=on_invalid, **kw)
+    if not reader.has_pos:
+        raise DataError(f"{path}: no positions; eval compares pose streams (position and rotation), "
+                        f"e.g. TUM, EuRoC, KITTI, or csv with columns t x y z qw qx qy qz")
+    clean = Cleaner(reader, on_invalid)
+    chunks = [c for c in (clean(c) for c in reader) if len(c)]
+    if not chunks:
+        raise DataError(f"{path}: no valid rows left")
+    whole = concat(chunks)
+    if err is not None:
+        reader.say(err)
+        clean.report(err)
+    t = None if whole.t is None else np.asarray(whole.t, dtype=np.float64)
+    return T.Poses(t, np.ascontiguousarray(whole.pos, dtype=np.float64), np.ascontiguousarray(whole.data, np.float64))
+
+
+def _read_both(ref_path, est_path, err, **kw):
+    """Both streams, read in two threads (the text parser releases the GIL); their notes
+    go to `err` in order, reference first."""
+    import io as _io
+    from concurrent.futures import ThreadPoolExecutor
+
+    notes = [_io.StringIO(), _io.StringIO()]
+    with ThreadPoolExecutor(2) as pool:
+        jobs = [pool.submit(read_poses, p, err=n, **kw) for p, n in zip((ref_path, est_path), notes)]
+        try:
+            ref = jobs[0].result()
+        finally:
+            err.write(notes[0].getvalue())
+        try:
+            est = jobs[1].result()
+        finally:
+            err.write(notes[1].getvalue())
+    return ref, est
+
+
+# --------------------------------------------------------------------------
+# reporting
+
+
+def title(result, align, n_to_align=None, delta=None, delta_unit=None, all_pairs=False):
+    """evo's title of a result, e.g. ``APE w.r.t. translation part (m)`` and the alignment."""
+    head = f"{result.metric.upper()} w.r.t. {TITLES[result.relation]} ({result.unit})"
+    if result.metric == "rpe":
+        head += f"\nfor delta = {delta} ({delta_unit}) using {'all' if all_pairs else 'consecutive'} pairs"
+    head += f"\n({ALIGN_TITLES[align]})"
+    if align != "none" and n_to_align is not None:
+        head += f" (aligned poses: {n_to_align})"
+    return head
+
+
+def report(result, head, out=sys.stdout):
+    """Print the title, the pair count and the statistics, one a line."""
+    print(head, file=out)
+    print(f"{'pairs':>8}  {result.errors.size}", file=out)
+    for k in T.STATISTICS:
+        print(f"{k:>8}  {result.stats[k]:.9g}", file=out)
+
+
+def as_json(result, head, ref_name, est_name, options):
+    a = result.alignment
+    return {
+        "title": head, "ref": ref_name, "est": est_name, "metric": result.metric,
+        "pose_relation": result.relation, "unit": result.unit, "pairs": int(result.errors.size),
+        "stats": result.stats, "options": options,
+        "alignment": {"rotation": a.r.tolist(), "quaternion": a.q.tolist(), "translation": a.t.tolist(),
+                      "scale": a.s},
+    }
+
+
+def write_errors(path, result):
+    """Per-pose errors (with reference times when there are) to csv, parquet (or npy: errors only)."""
+    fields = (["pose0"] if result.metric == "rpe" else []) + ["pose", "error"]
+    data = [result.index.astype(np.float64), result.errors]
+    if result.metric == "rpe":
+        data.insert(0, result.i0.astype(np.float64))
+    from .io.formats import output_format
+
+    if output_format(path) == "npy":
+        with open_writer(path, ["error"]) as w:
+            w.write(result.errors[:, None])
+        return
+    with open_writer(path, fields, time=result.t is not None) as w:
+        w.write(np.column_stack(data), result.t)
+
+
+def plot(path, result, ref_name, est_name):
+    """Errors over time (or pose index) and the aligned trajectories seen from above (x, y)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 4.5))
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(1, 2)
+    step = max(1, result.errors.size // 20_000)
+    x = (result.t - result.ref.t[0]) if result.t is not None else result.index
+    ax1.plot(x[::step], result.errors[::step], lw=0.8)
+    ax1.axhline(result.stats["rmse"], color="C3", ls="--", lw=0.8, label=f"rmse {result.stats['rmse']:.4g}")
+    ax1.set_xlabel("t − t₀ (s)" if result.t is not None else "pose")
+    ax1.set_ylabel(f"{result.metric.upper()} {TITLES[result.relation]} ({result.unit})")
+    ax1.legend(loc="upper right")
+    s = max(1, len(result.ref) // 20_000)
+    ax2.plot(result.ref.pos[::s, 0], result.ref.pos[::s, 1], lw=0.8, label=os.path.basename(ref_name))
+    ax2.plot(result.est.pos[::s, 0], result.est.pos[::s, 1], lw=0.8, label=os.path.basename(est_name) + " (aligned)")
+    ax2.set_xlabel("x (m)")
+    ax2.set_ylabel("y (m)")
+    ax2.set_aspect("equal", adjustable="datalim")
+    ax2.legend(loc="best")
+    fig.tight_layout()
+    folder, base = os.path.split(os.path.abspath(path))
+    tmp = os.path.join(folder, f".{base}.tmp")
+    fig.savefig(tmp, format="png")
+    os.replace(tmp, path)
+
+
+# --------------------------------------------------------------------------
+# the job
+
+
+def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", delta=1, delta_unit="frames",
+        all_pairs=False, n_to_align=None, t_max_diff=0.01, t_offset=0.0, interpolate=False, out=None,
+        plot_path=None, json_path=None, fmt="auto", layout=None, chunk=None, on_invalid="error",
+        force=False, stdout=None, stderr=None):
+    """Run ``quatarray eval``: returns the exit status (0), raises DataError / UsageError.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np
+    >>> from quatarray.evaluate import run
+    >>> d = tempfile.mkdtemp()
+    >>> t = np.arange(5.0)
+    >>> ref = np.c_[t, t, t ** 2, np.zeros(5), np.tile([0, 0, 0, 1.0], (5, 1))]
+    >>> np.savetxt(os.path.join(d, "ref.txt"), ref)
+    >>> np.savetxt(os.path.join(d, "est.txt"), ref + [0, 0.1, 0, 0, 0, 0, 0, 0])
+    >>> run(os.path.join(d, "ref.txt"), os.path.join(d, "est.txt"), fmt="tum")  # doctest: +ELLIPSIS
+    APE w.r.t. translation part (m)
+    (not aligned)
+       pairs  5
+        rmse  0.1
+        mean  0.1
+      median  0.1
+         std  ...
+         min  0.1
+         max  0.1
+         sse  0.05
+    0
+    """
+    stdout = stdout or sys.stdout
+    stderr = stderr or sys.stderr
+    if metric == "rpe" and delta_unit == "frames" and int(delta) != delta:
+        raise UsageError(f"--delta in frames must be a whole number, got {delta}")
+    if metric == "rpe" and delta_unit == "frames":
+        delta = int(delta)
+    for o in (out, plot_path, json_path):
+        if o is not None:
+            check_output(o, [ref_path, est_path], force)
+    if plot_path is not None:
+        from .plot import have_matplotlib
+
+        if not have_matplotlib():
+            raise UsageError("--plot needs matplotlib (pip install matplotlib)")
+    options = dict(metric=metric, align=align, relation=relation, delta=delta, delta_unit=delta_unit,
+                   all_pairs=all_pairs, n_to_align=n_to_align, t_max_diff=t_max_diff, t_offset=t_offset,
+                   interpolate=interpolate)
+    ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
+                          on_invalid=on_invalid)
+    try:
+        result = T.evaluate(ref, est, **options)
+    except ValueError as exc:
+        raise DataError(f"{est_path} against {ref_path}: {str(exc).splitlines()[0]}") from None
+    if out is not None:
+        write_errors(out, result)
+    if plot_path is not None:
+        plot(plot_path, result, ref_path, est_path)
+    head = title(result, align, n_to_align, delta, delta_unit, all_pairs)
+    report(result, head, stdout)
+    if json_path is not None:
+        with open(json_path, "w") as f:
+            json.dump(as_json(result, head, ref_path, est_path, options), f, indent=2)
+            f.write("\n")
+    return 0

@@ -1,0 +1,707 @@
+"""Trajectory evaluation: compare an estimated pose stream with a reference, as evo does.
+
+A pose stream is a :class:`Poses`: times (or ``None`` for streams without
+times, such as KITTI's), positions ``(N, 3)`` and rotations ``(N, 4)`` as
+(w, x, y, z) quaternions (active: the rotation takes body coordinates to
+world coordinates, as a pose matrix ``[R | p]`` does).
+
+The steps follow the evo tool (``evo_ape``, ``evo_rpe``) and give the same
+numbers (within 1e-9 relative) on the same inputs:
+
+1. :func:`associate` pairs the poses by time (evo's
+   ``associate_trajectories``: nearest within ``t_max_diff`` after
+   ``t_offset``), or resamples the estimate at the reference times
+   (``interpolate=True``: :func:`quatarray.spline` on rotations, linear on
+   positions). Streams without times are paired pose by pose.
+2. :func:`umeyama` / :func:`align` fit Umeyama's least-squares similarity
+   (``"sim3"``), rigid motion (``"se3"``), scale only (``"scale"``, evo's
+   ``correct_scale`` alone) or nothing (``"none"``). The fit needs only the
+   means and a 3×3 covariance (:class:`Moments`), so long streams can be
+   fitted chunk by chunk.
+3. :func:`ape` and :func:`rpe` give per-pose errors for a pose relation:
+   ``"trans"`` (metres), ``"rot"`` (rotation angle in degrees) or ``"full"``
+   (‖E − I‖_F of the SE(3) error matrix E); :func:`statistics` gives rmse,
+   mean, median, std, min, max and sse.
+
+:func:`evaluate` runs the three steps. The pose algebra runs in quatarray's
+batched kernels: no Python loop over poses. The SE(3) error matrix is never
+formed: with E = (R, t), ‖E − I‖_F² = ‖R − I‖_F² + ‖t‖² = 8 sin²(θ/2) + ‖t‖²,
+θ the rotation angle of R.
+"""
+
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from ._jit import kernel
+
+RELATIONS = ("trans", "rot", "full")
+ALIGNMENTS = ("none", "se3", "sim3", "scale")
+METRICS = ("ape", "rpe")
+DELTA_UNITS = ("frames", "m", "s")
+STATISTICS = ("rmse", "mean", "median", "std", "min", "max", "sse")
+UNITS = {"trans": "m", "rot": "deg", "full": "1"}
+
+
+@dataclass(frozen=True)
+class Poses:
+    """A pose stream: times (or None), positions (N, 3), quaternions (N, 4) as (w, x, y, z)."""
+
+    t: np.ndarray
+    pos: np.ndarray
+    q: np.ndarray
+
+    def __len__(self):
+        return self.pos.shape[0]
+
+    def replace(self, **kw):
+        """A copy with some fields replaced."""
+        return replace(self, **kw)
+
+    def take(self, idx):
+        """The poses at `idx` (an index array or slice)."""
+        return Poses(None if self.t is None else self.t[idx], self.pos[idx], self.q[idx])
+
+
+def poses(t, pos, q):
+    """A :class:`Poses` from array-likes, checked and as float64 (quaternions normalised).
+
+    Examples
+    --------
+    >>> from quatarray.trajectory import poses
+    >>> p = poses([0.0, 0.1], [[0, 0, 0], [1, 0, 0]], [[2.0, 0, 0, 0], [1, 0, 0, 0]])
+    >>> len(p), p.q[0]
+    (2, array([1., 0., 0., 0.]))
+    """
+    import quatarray as qa
+
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise ValueError(f"positions must have shape (N, 3), got {pos.shape}")
+    if q.shape != (pos.shape[0], 4):
+        raise ValueError(f"quaternions must have shape ({pos.shape[0]}, 4), got {q.shape}")
+    if t is not None:
+        t = np.ascontiguousarray(t, dtype=np.float64)
+        if t.shape != (pos.shape[0],):
+            raise ValueError(f"times must have shape ({pos.shape[0]},), got {t.shape}")
+    return Poses(t, pos, qa.normalize(q))
+
+
+# --------------------------------------------------------------------------
+# 1. association
+
+
+def match_times(stamps_1, stamps_2, max_diff=0.01, offset_2=0.0):
+    """Indices of the best matching times, exactly as evo's ``matching_time_indices``.
+
+    For each time of `stamps_1` (in order) the nearest time of
+    ``stamps_2 + offset_2`` within `max_diff`; unmatched times are skipped and
+    a time of `stamps_2` may be matched more than once. When `stamps_2` is
+    non-decreasing (repeated times allowed), ties go as in evo's binary search
+    (the later of two equally near times below, the last of repeated times);
+    otherwise as its linear search (the first index of the smallest difference).
+
+    Returns
+    -------
+    i1, i2 : ndarray of int
+        Matched indices into `stamps_1` and `stamps_2`.
+
+    Examples
+    --------
+    >>> from quatarray.trajectory import match_times
+    >>> match_times([0.0, 1.0, 2.0, 3.0], [0.004, 2.0, 2.0, 2.5], max_diff=0.01)
+    (array([0, 2]), array([0, 2]))
+    """
+    s1 = np.asarray(stamps_1, dtype=np.float64)
+    s2 = np.asarray(stamps_2, dtype=np.float64) + offset_2
+    if s2.size == 0 or s1.size == 0:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    if np.all(np.diff(s2) >= 0):
+        inside = (s1 >= s2[0] - max_diff) & (s1 <= s2[-1] + max_diff)
+        idx = np.minimum(np.searchsorted(s2, s1, side="right"), s2.size - 1)
+        diff_ub = s2[idx] - s1
+        diff_lb = np.where(idx > 0, s1 - s2[np.maximum(idx - 1, 0)], np.inf)
+        up = (diff_ub <= max_diff) & (diff_ub < diff_lb)
+        lo = ~up & (diff_lb <= max_diff) & (diff_lb <= diff_ub)
+        keep = inside & (up | lo)
+        best = np.where(up, idx, idx - 1)
+        return np.flatnonzero(keep), best[keep]
+    # Unsorted: the first index (in file order) of the smallest |s2 - s1|. In a
+    # stable sort the first of equal times is that index; compare both neighbours.
+    order = np.argsort(s2, kind="stable")
+    s = s2[order]
+    k = np.searchsorted(s, s1, side="left")  # first sorted time >= s1
+    hi = np.minimum(k, s.size - 1)
+    lo_val = s[np.maximum(k - 1, 0)]
+    lo = np.searchsorted(s, lo_val, side="left")  # first of the times equal to the one below
+    d_hi = np.abs(s[hi] - s1)
+    d_lo = np.where(k > 0, np.abs(lo_val - s1), np.inf)
+    o_hi, o_lo = order[hi], order[lo]
+    take_lo = (d_lo < d_hi) | ((d_lo == d_hi) & (o_lo < o_hi))
+    best = np.where(take_lo, o_lo, o_hi)
+    d = np.where(take_lo, d_lo, d_hi)
+    keep = d <= max_diff
+    return np.flatnonzero(keep), best[keep]
+
+
+def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
+    """Pair the poses of two streams by time.
+
+    Parameters
+    ----------
+    ref, est : Poses
+        Without times (either one), the streams are paired pose by pose and
+        must have the same length.
+    t_max_diff : float
+        Largest time difference of a pair (seconds), as evo's ``t_max_diff``.
+    t_offset : float
+        Added to the estimate's times before matching (evo's ``t_offset``).
+    interpolate : bool
+        Instead of nearest pairs: the reference poses whose times lie inside
+        the estimate's (offset) time span, with the estimate resampled at
+        those times (:func:`quatarray.spline` on rotations, linear on
+        positions; of repeated estimate times the first is kept).
+
+    Returns
+    -------
+    ref, est : Poses
+        Equal lengths; each keeps its own times. Pairs are in the order of
+        the shorter stream (of the estimate when the lengths are equal), as
+        evo's ``associate_trajectories``.
+
+    Raises
+    ------
+    ValueError
+        No pair found; lengths that differ for streams without times.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray.trajectory import poses, associate
+    >>> q = np.tile([1.0, 0, 0, 0], (4, 1))
+    >>> ref = poses([0.0, 1.0, 2.0, 3.0], np.zeros((4, 3)), q)
+    >>> est = poses([1.004, 2.05, 2.999], np.zeros((3, 3)), q[:3])
+    >>> r, e = associate(ref, est)
+    >>> r.t, e.t
+    (array([1., 3.]), array([1.004, 2.999]))
+    """
+    if ref.t is None or est.t is None:
+        if len(ref) != len(est):
+            raise ValueError(f"streams without times are compared pose by pose: the reference has "
+                             f"{len(ref)} poses, the estimate {len(est)}")
+        return ref, est
+    if interpolate:
+        return _resample(ref, est, t_offset)
+    second_longer = len(est) > len(ref)
+    if second_longer:
+        i_ref, i_est = match_times(ref.t, est.t, t_max_diff, t_offset)
+    else:
+        i_est, i_ref = match_times(est.t, ref.t, t_max_diff, -t_offset)
+    if i_ref.size == 0:
+        raise ValueError(f"no matching times between the reference and the estimate with "
+                         f"t_max_diff {t_max_diff} s and t_offset {t_offset} s")
+    return ref.take(_as_slice(i_ref)), est.take(_as_slice(i_est))
+
+
+def _resample(ref, est, t_offset):
+    import quatarray as qa
+
+    te = est.t + t_offset
+    keep = np.concatenate([[True], np.diff(te) > 0])
+    if not keep.all():
+        if np.any(np.diff(te) < 0):
+            raise ValueError("interpolation needs the estimate's times in increasing order")
+        te, est = te[keep], est.take(np.flatnonzero(keep))
+    inside = np.flatnonzero((ref.t >= te[0]) & (ref.t <= te[-1]))
+    if te.size < 2 or inside.size == 0:
+        raise ValueError("no reference time inside the estimate's time span")
+    ref = ref.take(inside)
+    pos = np.column_stack([np.interp(ref.t, te, est.pos[:, k]) for k in range(3)])
+    q = qa.spline(te, est.q, ref.t)
+    return ref, Poses(ref.t - t_offset, pos, qa.normalize(q))
+
+
+# --------------------------------------------------------------------------
+# 2. alignment
+
+
+@dataclass
+class Moments:
+    """Sums Umeyama's fit needs, mergeable chunk by chunk (Chan's pairwise update).
+
+    For points x (estimate) and y (reference): the count, both means,
+    ``sxx = Σ |x − x̄|²`` and ``cyx = Σ (y − ȳ)(x − x̄)ᵀ``. Each chunk's sums are
+    taken about its own means and merged exactly, so the result does not
+    suffer from cancellation when the positions are far from the origin.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray.trajectory import Moments
+    >>> x = np.random.default_rng(0).normal(size=(100, 3))
+    >>> whole = Moments.of(x, 2 * x)
+    >>> parts = Moments.of(x[:30], 2 * x[:30]).merge(Moments.of(x[30:], 2 * x[30:]))
+    >>> np.allclose(whole.cyx, parts.cyx), np.allclose(whole.mean_x, parts.mean_x)
+    (True, True)
+    """
+
+    n: int = 0
+    mean_x: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    mean_y: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sxx: float = 0.0
+    cyx: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    @classmethod
+    def of(cls, x, y):
+        """The moments of one batch of point pairs, shapes (n, 3)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        n = x.shape[0]
+        if n == 0:
+            return cls()
+        mx, my = x.mean(axis=0), y.mean(axis=0)
+        dx, dy = x - mx, y - my
+        return cls(n, mx, my, float(np.einsum("ij,ij->", dx, dx)), dy.T @ dx)
+
+    def merge(self, other):
+        """The moments of both batches together."""
+        if other.n == 0:
+            return self
+        if self.n == 0:
+            return other
+        n = self.n + other.n
+        f = self.n * other.n / n
+        dx, dy = other.mean_x - self.mean_x, other.mean_y - self.mean_y
+        return Moments(
+            n, self.mean_x + dx * (other.n / n), self.mean_y + dy * (other.n / n),
+            self.sxx + other.sxx + f * float(dx @ dx), self.cyx + other.cyx + f * np.outer(dy, dx),
+        )
+
+
+class Alignment(NamedTuple):
+    """A similarity y = s R x + t: rotation as matrix and quaternion, translation, scale."""
+
+    r: np.ndarray
+    q: np.ndarray
+    t: np.ndarray
+    s: float
+
+    def apply(self, p):
+        """The poses `p` moved by this transform (positions s R x + t, rotations R ∘ q)."""
+        import quatarray as qa
+
+        q = np.broadcast_to(self.q, p.q.shape)
+        return Poses(p.t, qa.rotate(q, p.pos) * self.s + self.t, qa.multiply(q, p.q))
+
+
+IDENTITY = Alignment(np.eye(3), np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0)
+
+
+def umeyama(x, y=None, with_scale=True):
+    """Umeyama's least-squares similarity taking points `x` onto points `y`.
+
+    Minimises Σ |y_i − (s R x_i + t)|² (with s = 1 unless `with_scale`), as
+    evo's ``umeyama_alignment`` (which takes the points as columns).
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n, 3), or a :class:`Moments` as `x` (then no `y`)
+    with_scale : bool
+
+    Returns
+    -------
+    Alignment
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points; all points of either set equal; points on a line
+        (the rotation about that line is not determined).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import umeyama
+    >>> x = np.random.default_rng(1).normal(size=(10, 3))
+    >>> q = qa.from_rotvec([0.1, 0.2, 0.3])
+    >>> y = 2.0 * qa.rotate(np.tile(q, (10, 1)), x) + [1, 2, 3]
+    >>> a = umeyama(x, y)
+    >>> round(a.s, 12), np.allclose(a.t, [1, 2, 3]), np.allclose(a.r, qa.as_matrix(q))
+    (2.0, True, True)
+    """
+    import quatarray as qa
+
+    m = x if isinstance(x, Moments) else Moments.of(x, y)
+    if m.n < 3:
+        raise ValueError(f"alignment needs at least 3 poses, got {m.n}")
+    if m.sxx == 0.0 or not np.any(m.cyx):
+        raise ValueError("alignment is not possible: all positions are equal")
+    u, d, vt = np.linalg.svd(m.cyx / m.n)
+    if d[1] <= max(np.finfo(float).eps, 1e-12 * d[0]):
+        raise ValueError("alignment is not possible: the positions lie on a line (degenerate covariance)")
+    sign = np.ones(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
+        sign[2] = -1.0
+    r = (u * sign) @ vt
+    s = float(d @ sign) / (m.sxx / m.n) if with_scale else 1.0
+    t = m.mean_y - s * (r @ m.mean_x)
+    return Alignment(r, qa.from_matrix(r), t, s)
+
+
+def fit(ref, est, method="sim3", n_to_align=None):
+    """The alignment of `est` onto `ref` (paired poses) for `method`, on the first `n_to_align` poses.
+
+    ``"scale"`` keeps only the scale of the similarity fit (evo's
+    ``correct_scale`` without ``align``); ``"none"`` is the identity.
+    """
+    if method not in ALIGNMENTS:
+        raise ValueError(f"unknown alignment {method!r}; expected one of {ALIGNMENTS}")
+    if method == "none":
+        return IDENTITY
+    k = slice(None) if n_to_align is None else slice(0, int(n_to_align))
+    a = umeyama(est.pos[k], ref.pos[k], with_scale=method != "se3")
+    return Alignment(IDENTITY.r, IDENTITY.q, IDENTITY.t, a.s) if method == "scale" else a
+
+
+def align(ref, est, method="sim3", n_to_align=None):
+    """`est` aligned onto `ref` (paired poses) and the :class:`Alignment` used.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import poses, align
+    >>> rng = np.random.default_rng(2)
+    >>> ref = poses(None, rng.normal(size=(20, 3)), qa.random(20, rng=rng))
+    >>> est = poses(None, 0.5 * ref.pos - 1.0, ref.q)
+    >>> moved, a = align(ref, est, "sim3")
+    >>> round(a.s, 12), np.allclose(moved.pos, ref.pos)
+    (2.0, True)
+    """
+    a = fit(ref, est, method, n_to_align)
+    return _moved(est, a), a
+
+
+def _moved(est, a):
+    return est if a is IDENTITY else a.apply(est)
+
+
+# --------------------------------------------------------------------------
+# 3. metrics
+
+
+def _relation(relation):
+    if relation not in RELATIONS:
+        raise ValueError(f"unknown pose relation {relation!r}; expected one of {RELATIONS}")
+
+
+def _errors(relation, dpos, qa_, qb):
+    """Per-pose error of the SE(3) error E between rotations qa_, qb (E's rotation angle is
+    their distance) and the translation difference dpos (‖t_E‖ = ‖dpos‖)."""
+    import quatarray as qa
+
+    if relation == "trans":
+        return np.sqrt(np.einsum("ij,ij->i", dpos, dpos))
+    theta = qa.distance(qa_, qb)
+    if relation == "rot":
+        return np.rad2deg(theta)
+    half = np.sin(0.5 * theta)
+    return np.sqrt(8.0 * half * half + np.einsum("ij,ij->i", dpos, dpos))
+
+
+def ape(ref, est, relation="trans"):
+    """Absolute pose error of paired (aligned) poses, one value per pose.
+
+    E = est⁻¹ ref, as evo's ``APE``: ``"trans"`` ‖p_est − p_ref‖ (metres),
+    ``"rot"`` the rotation angle of E (degrees), ``"full"`` ‖E − I‖_F.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import poses, ape
+    >>> ref = poses(None, [[0, 0, 0], [1, 0, 0]], qa.identity(2))
+    >>> est = poses(None, [[0, 0, 0], [1, 3, 4]], qa.from_rotvec([[0, 0, 0], [0, 0, np.pi / 2]]))
+    >>> ape(ref, est, "trans"), ape(ref, est, "rot")
+    (array([0., 5.]), array([ 0., 90.]))
+    """
+    _relation(relation)
+    return _errors(relation, est.pos - ref.pos, est.q, ref.q)
+
+
+@kernel
+def _consecutive_by_distance(steps, delta):
+    # evo's filter_pairs_by_path (consecutive): restart the running sum at each kept pose
+    n = steps.shape[0] + 1
+    ids = np.empty(n, np.int64)
+    ids[0] = 0
+    k, run = 1, 0.0
+    for i in range(1, n):
+        run += steps[i - 1]
+        if run >= delta:
+            ids[k] = i
+            k += 1
+            run = 0.0
+    return ids[:k]
+
+
+@kernel
+def _all_pairs_by_distance(dist, delta, tol):
+    # evo's filter_pairs_by_path (all pairs): for each i the j > i whose
+    # dist[j] - dist[i] is nearest delta (the first on ties), kept within tol.
+    # dist is non-decreasing, so |dist[j] - dist[i] - delta| is unimodal in j.
+    n = dist.shape[0]
+    out_i = np.empty(max(n - 1, 0), np.int64)
+    out_j = np.empty(max(n - 1, 0), np.int64)
+    m = 0
+    for i in range(n - 1):
+        lo, hi = i + 1, n  # first j in (i, n) with dist[j] - dist[i] >= delta, else n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if dist[mid] - dist[i] >= delta:
+                hi = mid
+            else:
+                lo = mid + 1
+        best = -1
+        err = np.inf
+        if lo > i + 1:  # the plateau below: its first index
+            v = dist[lo - 1]
+            a, b = i + 1, lo - 1
+            while a < b:
+                mid = (a + b) // 2
+                if dist[mid] >= v:
+                    b = mid
+                else:
+                    a = mid + 1
+            best = a
+            err = abs(dist[a] - dist[i] - delta)
+        if lo < n:
+            e = abs(dist[lo] - dist[i] - delta)
+            if e < err:
+                best, err = lo, e
+        if err <= tol:
+            out_i[m] = i
+            out_j[m] = best
+            m += 1
+    return out_i[:m], out_j[:m]
+
+
+def pairs(est, delta=1, delta_unit="frames", all_pairs=False, rel_delta_tol=0.1):
+    """Index pairs (i, j) for the relative pose error, as evo's ``id_pairs_from_delta``.
+
+    Parameters
+    ----------
+    est : Poses
+        The poses the pairs are chosen on (evo chooses on the aligned estimate).
+    delta : int or float
+        In frames, metres travelled (``"m"``) or seconds (``"s"``).
+    delta_unit : {"frames", "m", "s"}
+        Seconds work as metres do, with the time elapsed in place of the path
+        length (evo has no time unit here).
+    all_pairs : bool
+        Every i with its j (evo's ``all_pairs``); default consecutive pairs
+        (each j is the next pair's i).
+    rel_delta_tol : float
+        With `all_pairs` in metres or seconds: a pair is kept when its
+        distance is within ``delta * rel_delta_tol`` of `delta`.
+
+    Returns
+    -------
+    i, j : ndarray of int
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import poses, pairs
+    >>> p = poses(np.arange(5.0), np.c_[np.arange(5.0), np.zeros((5, 2))], qa.identity(5))
+    >>> pairs(p, 2)
+    (array([0, 2]), array([2, 4]))
+    >>> pairs(p, 3, "m", all_pairs=True)
+    (array([0, 1]), array([3, 4]))
+    """
+    n = len(est)
+    if delta_unit not in DELTA_UNITS:
+        raise ValueError(f"unknown delta unit {delta_unit!r}; expected one of {DELTA_UNITS}")
+    if not delta > 0:
+        raise ValueError(f"delta must be positive, got {delta}")
+    if delta_unit == "frames":
+        if int(delta) != delta:
+            raise ValueError(f"delta in frames must be a whole number, got {delta}")
+        d = int(delta)
+        if all_pairs:
+            i = np.arange(max(n - d, 0))
+            j = i + d
+        else:
+            ids = np.arange(0, n, d)
+            i, j = ids[:-1], ids[1:]
+    else:
+        if delta_unit == "m":
+            step = np.diff(est.pos, axis=0)
+            steps = np.sqrt(np.einsum("ij,ij->i", step, step))
+        else:
+            if est.t is None:
+                raise ValueError("a delta in seconds needs times")
+            steps = np.diff(est.t)
+            if np.any(steps < 0):
+                raise ValueError("a delta in seconds needs non-decreasing times")
+        delta = float(delta)
+        if all_pairs:
+            dist = np.concatenate([[0.0], np.cumsum(steps)]) if delta_unit == "m" else est.t - est.t[0]
+            i, j = _all_pairs_by_distance(dist, delta, delta * rel_delta_tol)
+        else:
+            ids = _consecutive_by_distance(np.ascontiguousarray(steps), delta)
+            i, j = ids[:-1], ids[1:]
+    if i.size == 0:
+        raise ValueError(f"delta = {delta} ({delta_unit}) gives no pair among {n} poses; try a smaller delta")
+    return i, j
+
+
+def rpe(ref, est, relation="trans", delta=1, delta_unit="frames", all_pairs=False, rel_delta_tol=0.1):
+    """Relative pose error of paired (aligned) poses over the pairs of :func:`pairs`.
+
+    E = (Q_i⁻¹ Q_j)⁻¹ (P_i⁻¹ P_j) for reference poses Q and estimated poses P,
+    as evo's ``RPE``; relations as :func:`ape`.
+
+    Returns
+    -------
+    errors : ndarray, shape (m,)
+    i, j : ndarray of int, shape (m,)
+        The pairs.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import poses, rpe
+    >>> ref = poses(None, [[0, 0, 0], [1, 0, 0], [2, 0, 0]], qa.identity(3))
+    >>> est = poses(None, [[0, 0, 0], [1, 0, 0], [2, 1, 0]], qa.identity(3))
+    >>> rpe(ref, est)[0]
+    array([0., 1.])
+    """
+    import quatarray as qa
+
+    _relation(relation)
+    i, j = pairs(est, delta, delta_unit, all_pairs, rel_delta_tol)
+    si, sj = _as_slice(i), _as_slice(j)  # pairs in frames: strided views, no copies
+
+    def relative(p):  # p_i⁻¹ p_j: rotation q_i* q_j, translation R_i^T (x_j − x_i)
+        qi = qa.conjugate(p.q[si])
+        return qa.multiply(qi, p.q[sj]), qa.rotate(qi, p.pos[sj] - p.pos[si])
+
+    q_ref, t_ref = relative(ref)
+    q_est, t_est = relative(est)
+    return _errors(relation, t_est - t_ref, q_ref, q_est), i, j
+
+
+def _as_slice(idx):
+    """`idx` as a slice when it is an arithmetic progression, else itself."""
+    if idx.size > 1:
+        step = int(idx[1] - idx[0])
+        if step > 0 and np.all(np.diff(idx) == step):
+            return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
+
+
+def statistics(errors):
+    """evo's statistics of per-pose errors: rmse, mean, median, std, min, max, sse.
+
+    Examples
+    --------
+    >>> from quatarray.trajectory import statistics
+    >>> s = statistics([3.0, 4.0])
+    >>> s["rmse"] ** 2, s["mean"], s["sse"], s["std"]
+    (12.5, 3.5, 25.0, 0.5)
+    """
+    e = np.asarray(errors, dtype=np.float64)
+    if e.size == 0:
+        raise ValueError("no errors to summarise")
+    sq = e * e
+    return {
+        "rmse": float(np.sqrt(np.mean(sq))), "mean": float(np.mean(e)), "median": float(np.median(e)),
+        "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e)), "sse": float(np.sum(sq)),
+    }
+
+
+@dataclass
+class Result:
+    """What :func:`evaluate` found.
+
+    Attributes
+    ----------
+    stats : dict
+        :func:`statistics` of `errors`.
+    errors : ndarray
+        Per-pose (APE) or per-pair (RPE) errors.
+    t : ndarray or None
+        Reference time of each error (RPE: of the pair's second pose).
+    index : ndarray
+        Index of each error's pose in the associated streams (RPE: the second of the pair).
+    i0 : ndarray or None
+        RPE: index of the pair's first pose.
+    ref, est : Poses
+        The associated reference and the aligned estimate.
+    alignment : Alignment
+    metric, relation, unit : str
+    """
+
+    stats: dict
+    errors: np.ndarray
+    t: np.ndarray
+    index: np.ndarray
+    i0: np.ndarray
+    ref: Poses
+    est: Poses
+    alignment: Alignment
+    metric: str
+    relation: str
+    unit: str
+
+
+def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, delta_unit="frames",
+             all_pairs=False, n_to_align=None, t_max_diff=0.01, t_offset=0.0, interpolate=False):
+    """Associate, align and measure, as ``evo_ape`` / ``evo_rpe`` do.
+
+    Parameters
+    ----------
+    ref, est : Poses
+    metric : {"ape", "rpe"}
+    align : {"none", "se3", "sim3", "scale"}
+        evo's ``--align`` (se3), ``--align --correct_scale`` (sim3) and
+        ``--correct_scale`` alone (scale).
+    relation : {"trans", "rot", "full"}
+        evo's ``trans_part``, ``angle_deg`` and ``full``.
+    delta, delta_unit, all_pairs
+        RPE pairs, see :func:`pairs`.
+    n_to_align : int, optional
+        Fit the alignment on the first n associated poses only.
+    t_max_diff, t_offset, interpolate
+        Association, see :func:`associate`.
+
+    Returns
+    -------
+    Result
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.trajectory import poses, evaluate
+    >>> rng = np.random.default_rng(3)
+    >>> t = np.arange(50) * 0.1
+    >>> ref = poses(t, np.cumsum(rng.normal(size=(50, 3)), axis=0), qa.random(50, rng=rng))
+    >>> est = poses(t + 0.002, 3.0 * ref.pos, ref.q)
+    >>> r = evaluate(ref, est, "ape", align="sim3")
+    >>> round(r.alignment.s, 12), r.stats["max"] < 1e-12
+    (0.333333333333, True)
+    """
+    if metric not in METRICS:
+        raise ValueError(f"unknown metric {metric!r}; expected one of {METRICS}")
+    _relation(relation)
+    ref, est = associate(ref, est, t_max_diff, t_offset, interpolate)
+    a = fit(ref, est, align, n_to_align)
+    est = _moved(est, a)
+    if metric == "ape":
+        errors = ape(ref, est, relation)
+        index, i0 = np.arange(errors.size), None
+    else:
+        errors, i0, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
+    t = None if ref.t is None else ref.t[index]
+    return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])
