@@ -63,6 +63,8 @@ PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
 _OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy")
 
 prange = numba.prange
+# jit_options of an ``@overload`` that LLVM inlines into every caller (see ``inline``)
+INLINE_OPTIONS = {"cache": CACHE, "forceinline": True}
 
 
 def element(fn):

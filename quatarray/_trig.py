@@ -47,7 +47,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, inline, like
+from ._jit import CACHE, INLINE_OPTIONS, inline, like
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01
@@ -111,7 +111,7 @@ def reduce_pio2(x, k):
     return (((x - k * PIO2_1) - k * PIO2_2) - k * PIO2_3) - k * PIO2_4
 
 
-@overload(reduce_pio2, inline="always", jit_options={"cache": CACHE})
+@overload(reduce_pio2, jit_options=INLINE_OPTIONS)
 def _reduce_pio2(x, k):
     if isinstance(x, types.Float) and x.bitwidth == 32:
         p1, p2, p3, p4 = (np.float32(c) for c in (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4))

@@ -24,7 +24,7 @@ from . import _elements as E
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, element, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
+from ._jit import INLINE_OPTIONS, element, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
 from ._trig import half_arc, sincos
 from ._validate import as_float, as_times, check_core, elementwise, scan, shape_error
 
@@ -166,21 +166,21 @@ def _flat_ok(a):
     return isinstance(a, types.Array) and a.ndim == 1 and a.layout == "C"
 
 
-@overload(ld1, inline="always", jit_options={"cache": CACHE})
+@overload(ld1, jit_options=INLINE_OPTIONS)
 def _ld1(a, i):
     if _flat_ok(a):
         return lambda a, i: flat_load(a, i)
     return ld1
 
 
-@overload(st1, inline="always", jit_options={"cache": CACHE})
+@overload(st1, jit_options=INLINE_OPTIONS)
 def _st1(o, i, v):
     if _flat_ok(o):
         return lambda o, i, v: flat_store(o, i, v)
     return st1
 
 
-@overload(ld4flat, inline="always", jit_options={"cache": CACHE})
+@overload(ld4flat, jit_options=INLINE_OPTIONS)
 def _ld4flat(a, i):
     if _flat_ok(a):
         # "+ 0" keeps LLVM from folding a select of two loaded values into a
@@ -196,7 +196,7 @@ def _ld4flat(a, i):
     return ld4flat
 
 
-@overload(st4flat, inline="always", jit_options={"cache": CACHE})
+@overload(st4flat, jit_options=INLINE_OPTIONS)
 def _st4flat(o, i, q):
     if _flat_ok(o):
 
@@ -393,17 +393,17 @@ def _sign_summary(q, rows, ends, negated, unit, dots):
 
 
 @inline
-def fixed_arc(p, q):
-    """(θ, v) of the great arc from unit p to unit q, flat: slerp = p cos tθ + v sin tθ
-    (:func:`arc`, no flip)."""
-    th, v, sgn = arc(p, q, like(p[0], 0.0))
-    return th, v[0], v[1], v[2], v[3]
+def put(seg, n, c, q):
+    """Table row n, columns c … c + 3: the quaternion q."""
+    seg[n, c], seg[n, c + 1], seg[n, c + 2], seg[n, c + 3] = q
 
 
 @inline
-def put(seg, n, c, vals):
-    for i in range(len(vals)):
-        seg[n, c + i] = vals[i]
+def put_arc(seg, n, c, p, q):
+    """Table row n, columns c … c + 4: (θ, v) of the fixed arc from p to q (:func:`arc`)."""
+    th, v, sgn = arc(p, q, like(p[0], 0.0))
+    seg[n, c] = th
+    put(seg, n, c + 1, v)
 
 
 @rowloop(rows=4)
@@ -422,19 +422,19 @@ def _segments(q, c_out, c_in, kind, seg):
         put(seg, n, 8, b)
         put(seg, n, 12, r)
         if kind == 1:
-            put(seg, n, 16, fixed_arc(p, a))
-            put(seg, n, 21, fixed_arc(a, b))
-            put(seg, n, 26, fixed_arc(b, r))
+            put_arc(seg, n, 16, p, a)
+            put_arc(seg, n, 21, a, b)
+            put_arc(seg, n, 26, b, r)
         elif kind == 2:
-            put(seg, n, 16, fixed_arc(p, r))
-            put(seg, n, 21, fixed_arc(a, b))
+            put_arc(seg, n, 16, p, r)
+            put_arc(seg, n, 21, a, b)
         else:
-            put(seg, n, 16, fixed_arc(p, r))
+            put_arc(seg, n, 16, p, r)
 
 
 @inline
 def arc_slerp(p, q, c, t):
-    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`fixed_arc`."""
+    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`put_arc`."""
     th, v0, v1, v2, v3 = c
     s, co = sincos(t * th)
     r = (co * p[0] + s * v0, co * p[1] + s * v1, co * p[2] + s * v2, co * p[3] + s * v3)
@@ -495,7 +495,7 @@ def seg_keys(seg, n):
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
-# 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`fixed_arc`) at 16, 21, 26
+# 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`put_arc`) at 16, 21, 26
 # (written by `_segments`).
 #
 # The evaluation loops go segment by segment: for each run of samples in one
@@ -615,7 +615,7 @@ def _eval_bezier(times, new_t, seg, out):
         u = np.empty(TILE, seg.dtype)
         res = np.empty(4 * TILE, seg.dtype)
         rows = np.empty(TILE, np.int64)
-        count = 0
+        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
             t0 = times[sg]
@@ -630,7 +630,7 @@ def _eval_bezier(times, new_t, seg, out):
                     count += 1
                     if count == TILE:
                         bezier_tile(tile, u, res, rows, count, out)
-                        count = 0
+                        count = np.int64(0)
             else:
                 bezier_run(seg, n, new_t, j, e, t0, h, out)
             j = e
