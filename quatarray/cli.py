@@ -18,6 +18,7 @@ from .io import (
     DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
     read_times, rechunk,
 )
+from .io.clean import dots as row_dots, norms as row_norms
 from .io.formats import FORMATS
 
 METHODS = ("bezier", "slerp", "nlerp", "squad")
@@ -37,11 +38,26 @@ def _open(args, path, kind="quat"):
     )
 
 
+class _NoBar:
+    """What :func:`_progress` gives when no bar is shown (tqdm is then not imported)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        pass
+
+
 def _progress(args, total, desc):
+    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    if not show:
+        return _NoBar()
     from tqdm import tqdm
 
-    show = args.progress if args.progress is not None else sys.stderr.isatty()
-    return tqdm(total=total, unit="row", unit_scale=True, desc=desc, file=sys.stderr, disable=not show,
+    return tqdm(total=total, unit="row", unit_scale=True, desc=desc, file=sys.stderr,
                 leave=False, dynamic_ncols=True)
 
 
@@ -464,8 +480,6 @@ def cmd_compose(args):
 
 
 def cmd_info(args):
-    import quatarray as qa
-
     reader = _open(args, args.IN)
     n = bad = flips = 0
     first_bad = None
@@ -480,7 +494,7 @@ def cmd_info(args):
             if not k:
                 continue
             dtype = dtype or ch.data.dtype
-            norms = qa.norm(ch.data) if reader.kind == "quat" else np.linalg.norm(ch.data, axis=1)
+            norms = row_norms(ch.data) if reader.kind == "quat" else np.linalg.norm(ch.data, axis=1)
             good = np.isfinite(norms) & (norms > 0)
             if ch.t is not None:
                 good &= np.isfinite(ch.t)
@@ -495,7 +509,7 @@ def cmd_info(args):
             q = ch.data[good]
             if len(q):
                 src = q if last_q is None else np.concatenate([last_q[None], q])
-                flips += int(np.count_nonzero(qa.dot(src[1:], src[:-1]) < 0))
+                flips += int(np.count_nonzero(row_dots(src[1:], src[:-1]) < 0))
                 last_q = q[-1]
             if ch.t is not None:
                 t = ch.t[good]

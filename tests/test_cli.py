@@ -467,6 +467,42 @@ def test_progress_bar_on_stderr(capsys, tmp_path, rng):
 
 
 # --------------------------------------------------------------------------
+# start-up: a verb imports only what it needs
+
+IMPORTS = (
+    "import sys\n"
+    "from quatarray.cli import main\n"
+    "rc = main(sys.argv[1:])\n"
+    "heavy = ('numba', 'scipy', 'pyarrow', 'pyarrow.compute', 'dask', 'distributed', 'matplotlib', 'tqdm', 'zarr')\n"
+    "print(rc, *[m for m in heavy if m in sys.modules])\n"
+)
+
+
+def _loaded(*argv):
+    """The exit status and the heavy modules loaded by ``main(argv)`` in a fresh process."""
+    res = subprocess.run([sys.executable, "-c", IMPORTS, *map(str, argv)], capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode == 0, res.stderr
+    rc, *mods = res.stdout.splitlines()[-1].split()  # after what the verb prints
+    assert rc == "0", res.stderr
+    return int(rc), set(mods)
+
+
+def test_startup_imports_only_what_the_verb_needs(tmp_path, rng):
+    t, pos, q = smooth_stream(rng, 50)
+    tum = tmp_path / "x.txt"
+    np.savetxt(tum, np.column_stack([t, pos, q[:, [1, 2, 3, 0]]]), header="timestamp tx ty tz qx qy qz qw")
+    np.save(tmp_path / "q.npy", unit(rng, 50))
+    # text is parsed by pyarrow.csv; checking and writing the quaternions needs no kernel
+    assert _loaded("convert", tum, tmp_path / "y.npy", "--to", "quat") == (0, {"pyarrow"})
+    assert _loaded("info", tum) == (0, {"pyarrow"})
+    assert _loaded("convert", tmp_path / "q.npy", tmp_path / "y2.npy", "--to", "quat") == (0, set())
+    # a conversion runs a kernel: numba (which itself loads scipy's BLAS table), nothing else
+    rc, mods = _loaded("convert", tmp_path / "q.npy", tmp_path / "m.npy", "--to", "matrix")
+    assert rc == 0 and "numba" in mods and not mods & {"pyarrow", "dask", "distributed", "matplotlib", "tqdm"}
+    assert np.load(tmp_path / "y.npy").shape == (50, 4)
+
+
+# --------------------------------------------------------------------------
 # demo, bench, plot, --scheduler: argument wiring to the modules that do the work
 
 

@@ -511,7 +511,6 @@ class TextReader(Reader):
 
     def _col(self, batch, c):
         import pyarrow as pa
-        import pyarrow.compute as pc
 
         col = batch.column(batch.schema.names.index(c))
         if col.type != pa.string():
@@ -521,6 +520,8 @@ class TextReader(Reader):
         if self.ns_time and c == self.t:
             vals = [_int_or_none(s) for s in col.to_pylist()]
             return np.array([np.nan if v is None else _ns_to_s(v) for v in vals], dtype=np.float64)
+        import pyarrow.compute as pc  # only here: importing it costs ~30 ms
+
         try:
             return pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
         except pa.ArrowInvalid:
