@@ -19,7 +19,7 @@ from .io import (
     read_times, rechunk,
 )
 from .io.clean import dots as row_dots, norms as row_norms
-from .io.formats import FORMATS
+from .io.formats import FORMATS, is_zarr, output_format
 
 METHODS = ("bezier", "slerp", "nlerp", "squad")
 TARGETS = "quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic)"
@@ -136,6 +136,12 @@ def gimbal_note(name, locked, err):
               "was set to 0 there (as scipy does)", file=err)
 
 
+def prepare_convert(args):
+    """Check ``--to`` once, before any input runs (each run makes its own converter)."""
+    if not args.scheduler:
+        _target(args.to, args.degrees)
+
+
 def cmd_convert(args):
     if args.scheduler:
         return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
@@ -203,19 +209,24 @@ class _RateTimes:
 class _FileTimes:
     """New times from a file: non-decreasing, inside the key times."""
 
-    def __init__(self, path, fmt):
+    def __init__(self, path, times):
         self.name = path
-        self.times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto"), dtype=np.float64)
-        if self.times.size == 0:
-            raise DataError(f"{path}: no times")
-        if not np.isfinite(self.times).all():
-            raise DataError(f"{path}: row {int(np.argmin(np.isfinite(self.times)))}: time is not finite")
-        d = np.diff(self.times)
-        if (d < 0).any():
-            i = int(np.argmax(d < 0)) + 1
-            raise DataError(f"{path}: row {i}: times must not decrease ({self.times[i]!r} after {self.times[i - 1]!r})")
+        self.times = times  # from load(), read once for all inputs
         self.p = 0
         self.t0 = None
+
+    @staticmethod
+    def load(path, fmt="auto"):
+        times = np.asarray(read_times(path, fmt if fmt in ("npy", "csv") else "auto"), dtype=np.float64)
+        if times.size == 0:
+            raise DataError(f"{path}: no times")
+        if not np.isfinite(times).all():
+            raise DataError(f"{path}: row {int(np.argmin(np.isfinite(times)))}: time is not finite")
+        d = np.diff(times)
+        if (d < 0).any():
+            i = int(np.argmax(d < 0)) + 1
+            raise DataError(f"{path}: row {i}: times must not decrease ({times[i]!r} after {times[i - 1]!r})")
+        return times
 
     def upto(self, b, closed):
         if self.p == 0 and self.times[0] < self.t0:
@@ -241,6 +252,11 @@ def timed_chunks(reader, in_rate):
         yield ch
 
 
+def prepare_resample(args):
+    """What all inputs share, checked before any runs: the new times of ``--times``."""
+    args.new_times = _FileTimes.load(args.times) if args.times and not args.scheduler else None
+
+
 def cmd_resample(args):
     if args.scheduler:
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
@@ -248,7 +264,7 @@ def cmd_resample(args):
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
     import quatarray as qa
 
-    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
+    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, args.new_times)
     reader = _open(args, args.IN)
     if not reader.has_time and args.in_rate is None:
         raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ")
@@ -550,9 +566,107 @@ def cmd_info(args):
     lines.append(("sign flips", f"{flips} (consecutive rows with q·q_prev < 0)"))
     lines.append(("invalid rows", f"{bad}" + (f" (first at {first_bad})" if first_bad else "")))
     width = max(len(k) for k, _ in lines)
+    if getattr(args, "gap", False):
+        print()
     for k, v in lines:
         print(f"{k + ':':<{width + 1}} {v}")
     return 0
+
+
+# --------------------------------------------------------------------------
+# several inputs in one process: convert, resample, unflip, info
+
+
+def _folder_form(args):
+    """Whether OUT is a folder for the outputs (several inputs, ``--ext``, an existing
+    folder or a trailing ``/``) rather than the output file of one input."""
+    out = getattr(args, "OUT", None)
+    if out is None:  # info
+        return len(args.IN) > 1
+    return (len(args.IN) > 1 or args.ext is not None or out.endswith(("/", os.sep))
+            or (os.path.isdir(out) and not is_zarr(out)))
+
+
+def _plan(args):
+    """The ``(IN, OUT)`` pairs of one run: each output is ``OUT/<input's stem><ext>``.
+
+    What would refuse the run as a whole is a usage error raised here, before any
+    input runs: OUT a file, an extension that names no output format, two inputs
+    with the same output, an output that would be one of the inputs.
+    """
+    if not hasattr(args, "OUT"):  # info
+        return [(src, None) for src in args.IN]
+    folder = args.OUT
+    if os.path.exists(folder) and (not os.path.isdir(folder) or is_zarr(folder)):
+        raise UsageError(f"{folder}: not a folder; with several inputs (or --ext) OUT is the folder "
+                         "the outputs are written to")
+    ext = None if args.ext is None else "." + args.ext.lstrip(".")
+    inputs = list(args.IN) + ([args.times] if getattr(args, "times", None) else [])
+    pairs, seen = [], {}
+    for src in args.IN:
+        stem, own = os.path.splitext(os.path.basename(os.path.normpath(src)))
+        dst = os.path.join(folder, stem + (own if ext is None else ext))
+        output_format(dst)
+        key = os.path.normcase(os.path.abspath(dst))
+        if key in seen:
+            raise UsageError(f"{seen[key]} and {src} would both be written to {dst}; "
+                             "give them separate runs (or folders)")
+        seen[key] = src
+        if os.path.isdir(folder):  # else nothing in it can be an input
+            check_output(dst, inputs, force=True)
+        pairs.append((src, dst))
+    return pairs
+
+
+def _each_input(args):
+    """Run the verb on every input in turn, in this one process. A failed input is
+    reported in its one line and the others still run; exit 1 if any failed."""
+    pairs = _plan(args)
+    if pairs[0][1] is not None:
+        os.makedirs(args.OUT, exist_ok=True)
+    failed = 0
+    for k, (src, dst) in enumerate(pairs):
+        one = argparse.Namespace(**vars(args))
+        one.IN = src
+        if dst is not None:
+            one.OUT = dst
+        one.gap = k > failed  # info: a blank line between the files' blocks
+        try:
+            failed += int(args.func(one) or 0) != 0
+        except BrokenPipeError:
+            raise
+        except (UsageError, DataError, OSError) as exc:
+            _, line = _complaint(args.verb, exc)
+            if src not in line and (dst is None or dst not in line):
+                line = f"{src}: {line}"
+            print(line, file=sys.stderr)
+            failed += 1
+    if failed and len(pairs) > 1:
+        print(f"quatarray {args.verb}: {failed} of {len(pairs)} inputs failed", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _run(args):
+    """The verb on its inputs: one IN (and OUT file) as given, or :func:`_each_input`."""
+    prepare = getattr(args, "prepare", None)
+    if prepare is not None:
+        prepare(args)
+    if not isinstance(getattr(args, "IN", None), list):
+        return int(args.func(args) or 0)
+    if _folder_form(args):
+        return _each_input(args)
+    args.IN = args.IN[0]
+    return int(args.func(args) or 0)
+
+
+def _complaint(verb, exc):
+    """``(exit status, the one line for stderr)`` of a user error or a failed file operation."""
+    if isinstance(exc, UsageError):
+        return 2, f"quatarray {verb}: error: {exc}"
+    if isinstance(exc, DataError):
+        return 1, str(exc)
+    where = f"{exc.filename}: " if exc.filename else ""
+    return 1, f"quatarray {verb}: error: {where}{exc.strerror or exc}"
 
 
 # --------------------------------------------------------------------------
@@ -616,6 +730,19 @@ def _positive(s):
     return v
 
 
+SEVERAL = ("With several inputs (IN... OUT) OUT is a folder, created if missing; each output keeps its "
+           "input's name, with the extension of --ext (default: the input's own). A failed input is reported "
+           "by name and the others still run (exit 1 if any failed).")
+
+
+def _in_out(s):
+    s.add_argument("IN", nargs="+", help="input stream(s)")
+    s.add_argument("OUT", help="output file, or the folder for the outputs of several inputs")
+    s.add_argument("--ext", metavar="EXT",
+                   help="extension (format) of the outputs in the OUT folder: npy, csv, parquet, txt "
+                        "(default: each input's own)")
+
+
 def build_parser():
     io_opts = argparse.ArgumentParser(add_help=False)
     g = io_opts.add_argument_group("input and output")
@@ -648,21 +775,20 @@ def build_parser():
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("info", parents=[io_opts], help="rows, columns, times, norms and sign flips of a stream")
-    s.add_argument("IN")
+    s.add_argument("IN", nargs="+", help="one or more streams, each reported under its name")
     s.set_defaults(func=cmd_info)
 
     s = sub.add_parser("convert", parents=[io_opts], help="convert quaternions to another representation",
-                       description=f"Targets: {TARGETS}.")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+                       description=f"Targets: {TARGETS}. {SEVERAL}")
+    _in_out(s)
     s.add_argument("--to", required=True, metavar="TARGET", help=TARGETS)
     s.add_argument("--degrees", action="store_true", help="angles in degrees (rotvec, axis-angle, euler)")
     s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
-    s.set_defaults(func=cmd_convert)
+    s.set_defaults(func=cmd_convert, prepare=prepare_convert)
 
-    s = sub.add_parser("resample", parents=[io_opts], help="resample a timestamped stream (Shoemake's Bézier)")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+    s = sub.add_parser("resample", parents=[io_opts], help="resample a timestamped stream (Shoemake's Bézier)",
+                       description=SEVERAL)
+    _in_out(s)
     m = s.add_mutually_exclusive_group(required=True)
     m.add_argument("--rate", type=_positive, metavar="HZ", help="new times t0 + k/HZ up to the last key")
     m.add_argument("--times", metavar="FILE", help="new times from a file (npy, one per line, or a stream)")
@@ -670,11 +796,11 @@ def build_parser():
     s.add_argument("--in-rate", type=_positive, metavar="HZ",
                    help="sampling rate of an input without a time column (row i is at i/HZ s)")
     s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
-    s.set_defaults(func=cmd_resample)
+    s.set_defaults(func=cmd_resample, prepare=prepare_resample)
 
-    s = sub.add_parser("unflip", parents=[io_opts], help="make the quaternion signs continuous")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+    s = sub.add_parser("unflip", parents=[io_opts], help="make the quaternion signs continuous",
+                       description=SEVERAL)
+    _in_out(s)
     s.set_defaults(func=cmd_unflip)
 
     s = sub.add_parser("rotate", parents=[io_opts], help="rotate vectors by quaternions, row by row")
@@ -737,20 +863,18 @@ def main(argv=None):
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
-    except UsageError as exc:
-        print(f"quatarray {args.verb}: error: {exc}", file=sys.stderr)
-        return 2
-    except DataError as exc:
-        print(str(exc), file=sys.stderr)
-        return 1
+        return _run(args)
+    except (UsageError, DataError) as exc:
+        status, line = _complaint(args.verb, exc)
+        print(line, file=sys.stderr)
+        return status
     except BrokenPipeError:  # `quatarray info x | head`: the reader went away
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 1
+        status, line = _complaint(args.verb, exc)
+        print(line, file=sys.stderr)
+        return status
     except KeyboardInterrupt:
         print("quatarray: interrupted", file=sys.stderr)
         return 130
