@@ -829,6 +829,37 @@ def build_parser():
     return p
 
 
+class _NumbaScipyProbes:
+    """An import hook that declines numba's two start-up probes for scipy.
+
+    ``numba/__init__`` imports scipy to check its version, and when numba's CPU
+    target starts (the first kernel a process calls, even from the cache)
+    ``numba.np.arraymath`` imports ``scipy.linalg.cython_blas`` to set
+    ``_HAVE_BLAS``, which only picks the inner product of numba's
+    ``np.correlate`` and ``np.convolve``, used by no quatarray kernel. Importing
+    scipy.linalg costs about 0.2 s, half of numba's start-up. Only those two
+    imports are declined (numba then skips the check and uses its own loop
+    there); any other scipy import goes through, and numba's linear algebra
+    imports scipy itself when it compiles.
+    """
+
+    PROBES = {("numba", "_ensure_critical_deps"), ("numba.np.arraymath", "_check_blas")}
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "scipy" or name.startswith("scipy."):
+            f = sys._getframe(1)
+            while f is not None:
+                if (f.f_globals.get("__name__"), f.f_code.co_name) in self.PROBES:
+                    raise ImportError("numba's scipy probe is skipped by the quatarray command line")
+                f = f.f_back
+        return None
+
+
+def _skip_numba_scipy_probes():
+    if "numba.np.arraymath" not in sys.modules and not any(isinstance(f, _NumbaScipyProbes) for f in sys.meta_path):
+        sys.meta_path.insert(0, _NumbaScipyProbes())
+
+
 def main(argv=None):
     """Run the command line; returns the exit status (0 ok, 1 bad data, 2 bad usage).
 
@@ -854,6 +885,7 @@ def main(argv=None):
     # The verbs alternate short parallel kernels with file I/O: idle OpenMP workers
     # should sleep rather than spin and steal the core the I/O runs on.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    _skip_numba_scipy_probes()
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
