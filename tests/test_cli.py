@@ -501,6 +501,10 @@ def test_several_inputs_outputs_named_after_inputs(capsys, tmp_path, several):
     assert rc == 0, err
     assert sorted(os.listdir(tmp_path / "r")) == ["a.csv", "b.csv", "c.csv"]
     assert list(read_csv(tmp_path / "r" / "c.csv")) == ["t", "x", "y", "z", "qw", "qx", "qy", "qz"]
+    np.save(tmp_path / "times.npy", [1.0, 1.5, 2.0])  # read once, for every input
+    rc, _, err = cli(capsys, "resample", *src, tmp_path / "rt", "--times", tmp_path / "times.npy", "--ext", "csv")
+    assert rc == 0, err
+    assert all(list(read_csv(tmp_path / "rt" / f"{k}.csv")["t"]) == [1.0, 1.5, 2.0] for k in "abc")
     # one input into an existing folder, OUT/ with a slash, or with --ext is the folder form too
     (tmp_path / "one").mkdir()
     assert cli(capsys, "convert", src[0], tmp_path / "one", "--to", "quat", "--ext", "npy")[0] == 0
