@@ -209,9 +209,9 @@ class _RateTimes:
 class _FileTimes:
     """New times from a file: non-decreasing, inside the key times."""
 
-    def __init__(self, path, times):
+    def __init__(self, path, fmt="auto", times=None):
         self.name = path
-        self.times = times  # from load(), read once for all inputs
+        self.times = self.load(path, fmt) if times is None else times  # given: read once for all inputs
         self.p = 0
         self.t0 = None
 
@@ -264,7 +264,7 @@ def cmd_resample(args):
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
     import quatarray as qa
 
-    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, args.new_times)
+    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, times=args.new_times)
     reader = _open(args, args.IN)
     if not reader.has_time and args.in_rate is None:
         raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ")
