@@ -90,8 +90,8 @@ def _target(to, degrees):
             return out
 
         return QUAT_FIELDS, (4,), quat
-    if to == "xyzw":
-        return ["qx", "qy", "qz", "qw"], (4,), qa.as_xyzw
+    if to == "xyzw":  # a permutation of columns: no kernel to load for it
+        return ["qx", "qy", "qz", "qw"], (4,), lambda q, out=None: np.take(q, [1, 2, 3, 0], axis=1, out=out)
     if to == "matrix":
         return [f"r{i}{j}" for i in range(3) for j in range(3)], (3, 3), qa.as_matrix
     if to == "rotvec":

@@ -609,6 +609,7 @@ def test_startup_imports_only_what_the_verb_needs(tmp_path, rng):
     assert _loaded("convert", tum, tmp_path / "y.npy", "--to", "quat") == (0, {"pyarrow"})
     assert _loaded("info", tum) == (0, {"pyarrow"})
     assert _loaded("convert", tmp_path / "q.npy", tmp_path / "y2.npy", "--to", "quat") == (0, set())
+    assert _loaded("convert", tmp_path / "q.npy", tmp_path / "y3.npy", "--to", "xyzw") == (0, set())
     # a conversion runs a kernel: numba, nothing else (not scipy, which numba probes for BLAS)
     assert _loaded("convert", tmp_path / "q.npy", tmp_path / "m.npy", "--to", "matrix") == (0, {"numba"})
     # a csv output: pyarrow writes it (and pandas, which pyarrow's conversions import, stays out)
