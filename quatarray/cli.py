@@ -4,7 +4,10 @@ Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
 stays bounded whatever the file size; reading and writing live in
 :mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage.
 Errors are one line on stderr naming the file, the line or row and what is
-wrong; a user error never prints a traceback.
+wrong; a user error never prints a traceback. ``convert``, ``resample``,
+``unflip`` and ``info`` take several inputs in one process (:func:`_each_input`).
+A verb imports only what it needs (no numba for reading and checking rows,
+pyarrow for text and parquet only, tqdm for a shown bar only).
 """
 
 import argparse

@@ -586,7 +586,8 @@ IMPORTS = (
     "import sys\n"
     "from quatarray.cli import main\n"
     "rc = main(sys.argv[1:])\n"
-    "heavy = ('numba', 'scipy', 'pandas', 'pyarrow', 'pyarrow.compute', 'dask', 'distributed', 'matplotlib', 'tqdm', 'zarr')\n"
+    "heavy = ('numba', 'scipy', 'pandas', 'pyarrow', 'pyarrow.compute', 'dask', 'distributed', 'matplotlib',\n"
+    "         'tqdm', 'zarr')\n"
     "print(rc, *[m for m in heavy if m in sys.modules])\n"
 )
 
