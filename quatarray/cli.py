@@ -6,7 +6,10 @@ stays bounded whatever the file size; reading and writing live in
 output that cannot be written, or no memory, included), 128 + N when stopped
 by signal N (SIGINT, SIGTERM, SIGHUP: the temporary output is removed).
 Errors are one line on stderr naming the file, the line or row and what is
-wrong; a user error never prints a traceback.
+wrong; a user error never prints a traceback. ``convert``, ``resample``,
+``unflip`` and ``info`` take several inputs in one process (:func:`_each_input`).
+A verb imports only what it needs (no numba for reading and checking rows,
+pyarrow for text and parquet only, tqdm for a shown bar only).
 """
 
 import argparse
@@ -23,7 +26,8 @@ from .io import (
     DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
     output_format, read_times, rechunk,
 )
-from .io.formats import FORMATS
+from .io.clean import dots as row_dots, norms as row_norms
+from .io.formats import FORMATS, is_zarr, output_format
 
 METHODS = ("bezier", "slerp", "nlerp", "squad")
 TARGETS = ("quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic), "
@@ -43,11 +47,26 @@ def _open(args, path, kind="quat"):
     )
 
 
+class _NoBar:
+    """What :func:`_progress` gives when no bar is shown (tqdm is then not imported)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        pass
+
+
 def _progress(args, total, desc):
+    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    if not show:
+        return _NoBar()
     from tqdm import tqdm
 
-    show = args.progress if args.progress is not None else sys.stderr.isatty()
-    return tqdm(total=total, unit="row", unit_scale=True, desc=desc, file=sys.stderr, disable=not show,
+    return tqdm(total=total, unit="row", unit_scale=True, desc=desc, file=sys.stderr,
                 leave=False, dynamic_ncols=True)
 
 
@@ -96,8 +115,8 @@ def _target(to, degrees):
             return out
 
         return QUAT_FIELDS, (4,), quat
-    if to == "xyzw":
-        return ["qx", "qy", "qz", "qw"], (4,), qa.as_xyzw
+    if to == "xyzw":  # a permutation of columns: no kernel to load for it
+        return ["qx", "qy", "qz", "qw"], (4,), lambda q, out=None: np.take(q, [1, 2, 3, 0], axis=1, out=out)
     if to == "matrix":
         return [f"r{i}{j}" for i in range(3) for j in range(3)], (3, 3), qa.as_matrix
     if to == "rotvec":
@@ -134,6 +153,12 @@ def gimbal_note(name, locked, err):
     if locked:
         print(f"{name}: gimbal lock in {locked} row{'s' if locked != 1 else ''}: the third angle "
               "was set to 0 there (as scipy does)", file=err)
+
+
+def prepare_convert(args):
+    """Check ``--to`` once, before any input runs (each run makes its own converter)."""
+    if not args.scheduler and args.to != "positions":
+        _target(args.to, args.degrees)
 
 
 def cmd_convert(args):
@@ -225,14 +250,22 @@ class _FileTimes:
     """Times from a file: ``--times`` (new times, non-decreasing, inside the key times)
     or ``--in-times`` (the key times of a stream without a time column, increasing)."""
 
-    def __init__(self, path, fmt, order="non-decreasing"):
+    def __init__(self, path, fmt="auto", order="non-decreasing", times=None):
         self.name = path
-        times, self.where = read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order, locate=True)
-        self.times = np.asarray(times, dtype=np.float64)
-        if self.times.size == 0:
-            raise DataError(f"{path}: no times")
+        # `times`: what load() gave, read once for all the inputs of a run
+        self.times, self.where = self.load(path, fmt, order) if times is None else times
         self.p = 0
         self.t0 = None
+
+    @staticmethod
+    def load(path, fmt="auto", order="non-decreasing"):
+        """``(times, where)`` of a times file: float64 times, checked finite and in
+        `order`, and ``where(i)`` naming time i's line for messages."""
+        times, where = read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order, locate=True)
+        times = np.asarray(times, dtype=np.float64)
+        if times.size == 0:
+            raise DataError(f"{path}: no times")
+        return times, where
 
     def _end(self, b, closed):
         if self.p == 0 and self.times[0] < self.t0:
@@ -285,6 +318,11 @@ def timed_chunks(reader, in_rate, in_times=None):
                         f"{rows + reader.skipped} rows; they must match")
 
 
+def prepare_resample(args):
+    """What all inputs share, checked before any runs: the new times of ``--times``."""
+    args.new_times = _FileTimes.load(args.times) if args.times and not args.scheduler else None
+
+
 def cmd_resample(args):
     if _is_bvh(args, args.IN) and os.path.splitext(args.OUT)[1].lower() == ".bvh":
         return _resample_clip(args)
@@ -296,7 +334,7 @@ def cmd_resample(args):
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
     import quatarray as qa
 
-    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, "auto")
+    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, times=args.new_times)
     reader = _open(args, args.IN)
     keyed = args.in_rate is not None or args.in_times is not None
     if not reader.has_time and not keyed:
@@ -539,8 +577,6 @@ def cmd_compose(args):
 
 
 def cmd_info(args):
-    import quatarray as qa
-
     reader = _open(args, args.IN)
     n = bad = flips = 0
     first_bad = None
@@ -555,7 +591,7 @@ def cmd_info(args):
             if not k:
                 continue
             dtype = dtype or ch.data.dtype
-            norms = qa.norm(ch.data) if reader.kind == "quat" else np.linalg.norm(ch.data, axis=1)
+            norms = row_norms(ch.data) if reader.kind == "quat" else np.linalg.norm(ch.data, axis=1)
             good = np.isfinite(norms) & (norms > 0)
             if ch.t is not None:
                 good &= np.isfinite(ch.t)
@@ -570,7 +606,7 @@ def cmd_info(args):
             q = ch.data[good]
             if len(q):
                 src = q if last_q is None else np.concatenate([last_q[None], q])
-                flips += int(np.count_nonzero(qa.dot(src[1:], src[:-1]) < 0))
+                flips += int(np.count_nonzero(row_dots(src[1:], src[:-1]) < 0))
                 last_q = q[-1]
             if ch.t is not None:
                 t = ch.t[good]
@@ -614,6 +650,8 @@ def cmd_info(args):
     lines.append(("sign flips", f"{flips} (consecutive rows with q·q_prev < 0)"))
     lines.append(("invalid rows", f"{bad}" + (f" (first at {first_bad})" if first_bad else "")))
     width = max(len(k) for k, _ in lines)
+    if getattr(args, "gap", False):
+        print()
     for k, v in lines:
         print(f"{k + ':':<{width + 1}} {v}")
     if reader.format == "bvh":
@@ -676,6 +714,101 @@ def _clip_tree(args):
           "channel order (intrinsic Euler) of each")
     for line in clip.tree():
         print(f"  {line}")
+
+
+# several inputs in one process: convert, resample, unflip, info
+
+
+def _folder_form(args):
+    """Whether OUT is a folder for the outputs (several inputs, ``--ext``, an existing
+    folder or a trailing ``/``) rather than the output file of one input."""
+    out = getattr(args, "OUT", None)
+    if out is None:  # info
+        return len(args.IN) > 1
+    return (len(args.IN) > 1 or args.ext is not None or out.endswith(("/", os.sep))
+            or (os.path.isdir(out) and not is_zarr(out)))
+
+
+def _plan(args):
+    """The ``(IN, OUT)`` pairs of one run: each output is ``OUT/<input's stem><ext>``.
+
+    What would refuse the run as a whole is a usage error raised here, before any
+    input runs: OUT a file, an extension that names no output format, two inputs
+    with the same output, an output that would be one of the inputs.
+    """
+    if not hasattr(args, "OUT"):  # info
+        return [(src, None) for src in args.IN]
+    folder = args.OUT
+    if os.path.exists(folder) and (not os.path.isdir(folder) or is_zarr(folder)):
+        raise UsageError(f"{folder}: not a folder; with several inputs (or --ext) OUT is the folder "
+                         "the outputs are written to")
+    ext = None if args.ext is None else "." + args.ext.lstrip(".")
+    inputs = list(args.IN) + ([args.times] if getattr(args, "times", None) else [])
+    pairs, seen = [], {}
+    for src in args.IN:
+        stem, own = os.path.splitext(os.path.basename(os.path.normpath(src)))
+        dst = os.path.join(folder, stem + (own if ext is None else ext))
+        output_format(dst)
+        key = os.path.normcase(os.path.abspath(dst))
+        if key in seen:
+            raise UsageError(f"{seen[key]} and {src} would both be written to {dst}; "
+                             "give them separate runs (or folders)")
+        seen[key] = src
+        if os.path.isdir(folder):  # else nothing in it can be an input
+            check_output(dst, inputs, force=True)
+        pairs.append((src, dst))
+    return pairs
+
+
+def _each_input(args):
+    """Run the verb on every input in turn, in this one process. A failed input is
+    reported in its one line and the others still run; exit 1 if any failed."""
+    pairs = _plan(args)
+    if pairs[0][1] is not None:
+        os.makedirs(args.OUT, exist_ok=True)
+    failed = 0
+    for k, (src, dst) in enumerate(pairs):
+        one = argparse.Namespace(**vars(args))
+        one.IN = src
+        if dst is not None:
+            one.OUT = dst
+        one.gap = k > failed  # info: a blank line between the files' blocks
+        try:
+            failed += int(args.func(one) or 0) != 0
+        except BrokenPipeError:
+            raise
+        except (UsageError, DataError, OSError) as exc:
+            _, line = _complaint(args.verb, exc)
+            if src not in line and (dst is None or dst not in line):
+                line = f"{src}: {line}"
+            print(line, file=sys.stderr)
+            failed += 1
+    if failed and len(pairs) > 1:
+        print(f"quatarray {args.verb}: {failed} of {len(pairs)} inputs failed", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _run(args):
+    """The verb on its inputs: one IN (and OUT file) as given, or :func:`_each_input`."""
+    prepare = getattr(args, "prepare", None)
+    if prepare is not None:
+        prepare(args)
+    if not isinstance(getattr(args, "IN", None), list):
+        return int(args.func(args) or 0)
+    if _folder_form(args):
+        return _each_input(args)
+    args.IN = args.IN[0]
+    return int(args.func(args) or 0)
+
+
+def _complaint(verb, exc):
+    """``(exit status, the one line for stderr)`` of a user error or a failed file operation."""
+    if isinstance(exc, UsageError):
+        return 2, f"quatarray {verb}: error: {exc}"
+    if isinstance(exc, DataError):
+        return 1, str(exc)
+    where = f"{exc.filename}: " if exc.filename else ""
+    return 1, f"quatarray {verb}: error: {where}{exc.strerror or exc}"
 
 
 # --------------------------------------------------------------------------
@@ -751,6 +884,19 @@ def _positive(s):
     return v
 
 
+SEVERAL = ("With several inputs (IN... OUT) OUT is a folder, created if missing; each output keeps its "
+           "input's name, with the extension of --ext (default: the input's own). A failed input is reported "
+           "by name and the others still run (exit 1 if any failed).")
+
+
+def _in_out(s):
+    s.add_argument("IN", nargs="+", help="input stream(s)")
+    s.add_argument("OUT", help="output file, or the folder for the outputs of several inputs")
+    s.add_argument("--ext", metavar="EXT",
+                   help="extension (format) of the outputs in the OUT folder: npy, csv, parquet, txt "
+                        "(default: each input's own)")
+
+
 def build_parser():
     io_opts = argparse.ArgumentParser(add_help=False)
     g = io_opts.add_argument_group("input and output")
@@ -787,21 +933,20 @@ def build_parser():
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("info", parents=[io_opts], help="rows, columns, times, norms and sign flips of a stream")
-    s.add_argument("IN")
+    s.add_argument("IN", nargs="+", help="one or more streams, each reported under its name")
     s.set_defaults(func=cmd_info)
 
     s = sub.add_parser("convert", parents=[io_opts], help="convert quaternions to another representation",
-                       description=f"Targets: {TARGETS}.")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+                       description=f"Targets: {TARGETS}. {SEVERAL}")
+    _in_out(s)
     s.add_argument("--to", required=True, metavar="TARGET", help=TARGETS)
     s.add_argument("--degrees", action="store_true", help="angles in degrees (rotvec, axis-angle, euler)")
     s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
-    s.set_defaults(func=cmd_convert)
+    s.set_defaults(func=cmd_convert, prepare=prepare_convert)
 
-    s = sub.add_parser("resample", parents=[io_opts], help="resample a timestamped stream (Shoemake's Bézier)")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+    s = sub.add_parser("resample", parents=[io_opts], help="resample a timestamped stream (Shoemake's Bézier)",
+                       description=SEVERAL)
+    _in_out(s)
     m = s.add_mutually_exclusive_group(required=True)
     m.add_argument("--rate", type=_positive, metavar="HZ", help="new times t0 + k/HZ up to the last key")
     m.add_argument("--times", metavar="FILE", help="new times from a file (npy, one per line, or a stream)")
@@ -813,11 +958,11 @@ def build_parser():
                    help="key times of an input without a time column, one a line (as KITTI's times.txt): "
                         "as many as its rows, strictly increasing")
     s.add_argument("--scheduler", metavar="ADDRESS|local", help="run on a Dask cluster (needs dask)")
-    s.set_defaults(func=cmd_resample)
+    s.set_defaults(func=cmd_resample, prepare=prepare_resample)
 
-    s = sub.add_parser("unflip", parents=[io_opts], help="make the quaternion signs continuous")
-    s.add_argument("IN")
-    s.add_argument("OUT")
+    s = sub.add_parser("unflip", parents=[io_opts], help="make the quaternion signs continuous",
+                       description=SEVERAL)
+    _in_out(s)
     s.set_defaults(func=cmd_unflip)
 
     s = sub.add_parser("rotate", parents=[io_opts], help="rotate vectors by quaternions, row by row")
@@ -932,20 +1077,18 @@ def main(argv=None):
         return 2
     try:
         with _signals_interrupt():
-            return int(args.func(args) or 0)
-    except UsageError as exc:
-        print(f"quatarray {args.verb}: error: {exc}", file=sys.stderr)
-        return 2
-    except DataError as exc:
-        print(str(exc), file=sys.stderr)
-        return 1
+            return _run(args)
+    except (UsageError, DataError) as exc:
+        status, line = _complaint(args.verb, exc)
+        print(line, file=sys.stderr)
+        return status
     except BrokenPipeError:  # `quatarray info x | head`: the reader went away
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"quatarray {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 1
+        status, line = _complaint(args.verb, exc)
+        print(line, file=sys.stderr)
+        return status
     except MemoryError:
         print(f"quatarray {args.verb}: error: out of memory; try a smaller --chunk", file=sys.stderr)
         return 2

@@ -164,13 +164,18 @@ def plot_streams(out_png, t, q, seq=None, after=None, title="", labels=("keys", 
         axes[2].legend(loc="upper right", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=11)
-    # written beside OUT and renamed: a failed run never leaves a partial image
+    return _save(fig, out_png)
+
+
+def _save(fig, out):
+    """Write `fig` to `out` in the format its extension names, beside it and renamed:
+    a failed run never leaves a partial image."""
     from .io import Writer
 
-    fmt = image_format(out_png)
-    with Writer(out_png, suffix=f".{fmt}") as w:
+    fmt = image_format(out)
+    with Writer(out, suffix=f".{fmt}") as w:
         fig.savefig(w.tmp, format=fmt)
-    return out_png
+    return out
 
 
 def image_format(path):
@@ -284,13 +289,4 @@ def plot_trajectories(out_png, t, p, names, after=None, title="", up=1):
         ax.legend(loc="upper right", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=11)
-    folder, base = os.path.split(os.path.abspath(out_png))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".png", dir=folder)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        os.replace(tmp, out_png)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return out_png
+    return _save(fig, out_png)

@@ -467,6 +467,158 @@ def test_progress_bar_on_stderr(capsys, tmp_path, rng):
 
 
 # --------------------------------------------------------------------------
+# several inputs in one process
+
+
+def _tum(path, rng, n=40):
+    t, pos, q = smooth_stream(rng, n)
+    np.savetxt(path, np.column_stack([t, pos, q[:, [1, 2, 3, 0]]]), header="timestamp tx ty tz qx qy qz qw")
+    return q
+
+
+@pytest.fixture
+def several(tmp_path, rng):
+    """Three TUM files a.txt, b.txt, c.txt in tmp_path/in, and their quaternions."""
+    (tmp_path / "in").mkdir()
+    return {k: _tum(tmp_path / "in" / f"{k}.txt", rng) for k in "abc"}
+
+
+def test_several_inputs_outputs_named_after_inputs(capsys, tmp_path, several):
+    src = [tmp_path / "in" / f"{k}.txt" for k in "abc"]
+    rc, _, err = cli(capsys, "convert", *src, tmp_path / "new" / "deeper", "--to", "matrix", "--ext", "npy")
+    assert rc == 0, err
+    assert sorted(os.listdir(tmp_path / "new" / "deeper")) == ["a.npy", "b.npy", "c.npy"]  # folder created
+    for k, q in several.items():
+        np.testing.assert_allclose(np.load(tmp_path / "new" / "deeper" / f"{k}.npy"), rot(q).as_matrix(), atol=1e-12)
+    # default extension: each input's own (TUM in, TUM out); `.csv` via --ext keeps the columns
+    rc, _, err = cli(capsys, "unflip", *src, tmp_path / "u")
+    assert rc == 0, err
+    assert sorted(os.listdir(tmp_path / "u")) == ["a.txt", "b.txt", "c.txt"]
+    got, q = np.loadtxt(tmp_path / "u" / "b.txt"), several["b"]
+    assert got.shape == (40, 8) and same_rotation(got[:, [7, 4, 5, 6]], q / np.linalg.norm(q, axis=1)[:, None])
+    assert (np.sum(got[1:, 4:] * got[:-1, 4:], axis=1) >= 0).all()
+    rc, _, err = cli(capsys, "resample", *src, tmp_path / "r", "--rate", "50", "--ext", ".csv")
+    assert rc == 0, err
+    assert sorted(os.listdir(tmp_path / "r")) == ["a.csv", "b.csv", "c.csv"]
+    assert list(read_csv(tmp_path / "r" / "c.csv")) == ["t", "x", "y", "z", "qw", "qx", "qy", "qz"]
+    np.save(tmp_path / "times.npy", [1.0, 1.5, 2.0])  # read once, for every input
+    rc, _, err = cli(capsys, "resample", *src, tmp_path / "rt", "--times", tmp_path / "times.npy", "--ext", "csv")
+    assert rc == 0, err
+    assert all(list(read_csv(tmp_path / "rt" / f"{k}.csv")["t"]) == [1.0, 1.5, 2.0] for k in "abc")
+    # one input into an existing folder, OUT/ with a slash, or with --ext is the folder form too
+    (tmp_path / "one").mkdir()
+    assert cli(capsys, "convert", src[0], tmp_path / "one", "--to", "quat", "--ext", "npy")[0] == 0
+    assert cli(capsys, "convert", src[1], f"{tmp_path / 'one'}{os.sep}", "--to", "quat", "--ext", "npy")[0] == 0
+    assert cli(capsys, "convert", src[2], tmp_path / "one", "--to", "quat")[0] == 0
+    assert cli(capsys, "convert", src[0], tmp_path / "two", "--to", "quat", "--ext", "csv")[0] == 0
+    assert sorted(os.listdir(tmp_path / "one")) == ["a.npy", "b.npy", "c.txt"]
+    assert os.listdir(tmp_path / "two") == ["a.csv"]
+
+
+def test_several_inputs_one_bad_file(capsys, tmp_path, several):
+    bad = tmp_path / "in" / "bad.txt"
+    bad.write_text("# timestamp tx ty tz qx qy qz qw\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n")
+    src = [tmp_path / "in" / "a.txt", bad, tmp_path / "in" / "c.txt", tmp_path / "in" / "none.txt"]
+    rc, _, err = cli(capsys, "convert", *src, tmp_path / "o", "--to", "rotvec", "--ext", "npy")
+    assert rc == 1
+    assert sorted(os.listdir(tmp_path / "o")) == ["a.npy", "c.npy"]  # the others written, no temporary left
+    lines = err.splitlines()
+    assert f"{bad}:3: expected 8 numbers, got 7" in lines
+    assert f"quatarray convert: error: {src[3]}: no such file" in lines
+    assert lines[-1] == "quatarray convert: 2 of 4 inputs failed"
+    assert "Traceback" not in err
+    # info: each good file under its name, the bad one named on stderr
+    rc, out, err = cli(capsys, "info", *src[:3])
+    assert rc == 1 and f"{bad}:3: expected 8 numbers, got 7" in err
+    blocks = out.split("\n\n")
+    assert [b.splitlines()[0].split(None, 1)[1] for b in blocks] == [str(src[0]), str(src[2])]
+    assert all("rows:         40" in b for b in blocks)
+
+
+def test_several_inputs_existing_output_and_exit_codes(capsys, tmp_path, several):
+    src = [tmp_path / "in" / f"{k}.txt" for k in "abc"]
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "b.npy").write_bytes(b"keep")
+    rc, _, err = cli(capsys, "convert", *src, tmp_path / "o", "--to", "quat", "--ext", "npy")
+    assert rc == 1 and f"{tmp_path / 'o' / 'b.npy'}: exists; use --force" in err
+    assert (tmp_path / "o" / "b.npy").read_bytes() == b"keep"
+    assert sorted(os.listdir(tmp_path / "o")) == ["a.npy", "b.npy", "c.npy"]
+    rc, _, err = cli(capsys, "convert", *src, tmp_path / "o", "--to", "quat", "--ext", "npy", "--force")
+    assert rc == 0 and np.load(tmp_path / "o" / "b.npy").shape == (40, 4)
+
+    def refused(*argv):
+        before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+        rc, _, err = cli(capsys, *argv)
+        assert rc == 2 and len(err.splitlines()) == 1, err
+        assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing ran
+        return err
+
+    # the folder forgotten: the last input taken for OUT is a file, not a folder
+    assert "not a folder" in refused("convert", *src, "--to", "quat")
+    # two inputs with the same name, from different folders: no silent overwrite
+    (tmp_path / "in2").mkdir()
+    _tum(tmp_path / "in2" / "a.txt", np.random.default_rng(3))
+    err = refused("convert", src[0], tmp_path / "in2" / "a.txt", tmp_path / "p", "--to", "quat", "--ext", "npy")
+    assert "would both be written to" in err and str(tmp_path / "p" / "a.npy") in err
+    # OUT holding the inputs, with their own extension: each output would be its input
+    err = refused("unflip", *src, tmp_path / "in", "--force")
+    assert "the output is the input file" in err
+    err = refused("convert", src[0], src[1], src[0], "--to", "quat")  # OUT equal to an input
+    assert "not a folder" in err
+    assert "cannot tell the output format" in refused("convert", *src, tmp_path / "p", "--to", "quat", "--ext", "xyz")
+    assert "SEQ is three axes" in refused("convert", *src, tmp_path / "p", "--to", "euler:XXY")
+
+
+def test_several_inputs_subprocess(tmp_path, several):
+    src = [tmp_path / "in" / f"{k}.txt" for k in "abc"]
+    (tmp_path / "in" / "b.txt").write_text("1 2 3\n")
+    res = run("convert", *src, tmp_path / "o", "--to", "quat", "--ext", "npy")
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert sorted(os.listdir(tmp_path / "o")) == ["a.npy", "c.npy"]
+    assert any(line.startswith(f"{src[1]}:1: ") for line in res.stderr.splitlines())
+    assert run("convert", *src, "--to", "quat").returncode == 2
+
+
+# --------------------------------------------------------------------------
+# start-up: a verb imports only what it needs
+
+IMPORTS = (
+    "import sys\n"
+    "from quatarray.cli import main\n"
+    "rc = main(sys.argv[1:])\n"
+    "heavy = ('numba', 'scipy', 'pandas', 'pyarrow', 'pyarrow.compute', 'dask', 'distributed', 'matplotlib',\n"
+    "         'tqdm', 'zarr')\n"
+    "print(rc, *[m for m in heavy if m in sys.modules])\n"
+)
+
+
+def _loaded(*argv):
+    """The exit status and the heavy modules loaded by ``main(argv)`` in a fresh process."""
+    res = subprocess.run([sys.executable, "-c", IMPORTS, *map(str, argv)], capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode == 0, res.stderr
+    rc, *mods = res.stdout.splitlines()[-1].split()  # after what the verb prints
+    assert rc == "0", res.stderr
+    return int(rc), set(mods)
+
+
+def test_startup_imports_only_what_the_verb_needs(tmp_path, rng):
+    t, pos, q = smooth_stream(rng, 50)
+    tum = tmp_path / "x.txt"
+    np.savetxt(tum, np.column_stack([t, pos, q[:, [1, 2, 3, 0]]]), header="timestamp tx ty tz qx qy qz qw")
+    np.save(tmp_path / "q.npy", unit(rng, 50))
+    # text is parsed by pyarrow.csv; checking and writing the quaternions needs no kernel
+    assert _loaded("convert", tum, tmp_path / "y.npy", "--to", "quat") == (0, {"pyarrow"})
+    assert _loaded("info", tum) == (0, {"pyarrow"})
+    assert _loaded("convert", tmp_path / "q.npy", tmp_path / "y2.npy", "--to", "quat") == (0, set())
+    assert _loaded("convert", tmp_path / "q.npy", tmp_path / "y3.npy", "--to", "xyzw") == (0, set())
+    # a conversion runs a kernel: numba (which imports scipy itself), nothing else
+    assert _loaded("convert", tmp_path / "q.npy", tmp_path / "m.npy", "--to", "matrix") == (0, {"numba", "scipy"})
+    # a csv output: pyarrow writes it (and pandas, which pyarrow's conversions import, stays out)
+    assert _loaded("unflip", tum, tmp_path / "u.csv") == (0, {"numba", "scipy", "pyarrow"})
+    assert np.load(tmp_path / "y.npy").shape == (50, 4)
+
+
+# --------------------------------------------------------------------------
 # demo, bench, plot, --scheduler: argument wiring to the modules that do the work
 
 

@@ -9,6 +9,11 @@ reported: for text, those its printed digits allow (the reader's
 ``tolerance``, at least 1e-6); for binary input, the dtype's rounding level.
 A quaternion whose norm over- or underflows (1e308 · q) is the rotation q:
 its norm is taken after dividing by its largest component.
+
+The checks are plain numpy (:func:`norms`, :func:`dots`), not compiled
+kernels: reading and checking a stream then loads no numba (about 0.4 s of
+a command's start-up), and these few operations per row run at memory
+speed either way.
 """
 
 import numpy as np
@@ -70,20 +75,20 @@ class Cleaner:
     def check(self, ch):
         """``(chunk with quaternions normalised, mask of good rows)``; raises on a bad
         row unless dropping. Rows are not removed (paired verbs drop row pairs)."""
-        import quatarray as qa
-
         n = len(ch)
         if n == 0:
             return ch, np.ones(0, bool)
         data = ch.data
         if self.reader.kind == "quat":
-            norms = qa.norm(data)
-            good = np.isfinite(norms) & (norms > 0)
+            norm = norms(data)
+            good = np.isfinite(norm) & (norm > 0)
+            unit_by = norm  # what the rows are divided by: |q| (of the rescaled rows, below)
             if not good.all():
-                data, norms, good = _rescaled(data, norms, good)
+                data, norm, good = _rescaled(data, norm, good)
                 ch = ch.replace(data=data)
+                unit_by = norms(data)
         else:
-            norms = None
+            norm = None
             good = np.isfinite(data).all(axis=1)
         if ch.t is not None:
             good &= np.isfinite(ch.t)
@@ -91,12 +96,12 @@ class Cleaner:
             good &= np.isfinite(ch.pos).all(axis=1)
         if not self.drop and not good.all():
             i = int(np.argmin(good))
-            self._fail(ch.row0 + i, self._why(ch, i, norms))
+            self._fail(ch.row0 + i, self._why(ch, i, norm))
         if self.ordered and ch.t is not None:
             good = self._order(ch, good)
         if self.normalize:
             with np.errstate(over="ignore", invalid="ignore"):
-                dev = np.abs(norms[good] - 1.0)
+                dev = np.abs(norm[good] - 1.0)
             rounding = ROUNDING[data.dtype.char]
             if dev.size and (dev > rounding).any():
                 count = int(np.count_nonzero(dev > max(rounding, getattr(self.reader, "tolerance", 0.0))))
@@ -104,7 +109,7 @@ class Cleaner:
                     self.normalised += count
                     self.max_dev = max(self.max_dev, float(dev.max()))
                 with np.errstate(invalid="ignore", divide="ignore"):
-                    ch = ch.replace(data=qa.normalize(data))
+                    ch = ch.replace(data=np.asarray(data) / unit_by[:, None])
         return ch, good
 
     def _order(self, ch, good):
@@ -129,7 +134,7 @@ class Cleaner:
             self.last_t = float(t[keep][-1])
         return keep
 
-    def _why(self, ch, i, norms):
+    def _why(self, ch, i, norm):
         if ch.t is not None and not np.isfinite(ch.t[i]):
             return f"time is not a finite number ({float(ch.t[i])!r})"
         if ch.pos is not None and not np.isfinite(ch.pos[i]).all():
@@ -171,22 +176,20 @@ def fixed_note(name, verb, count, noun, measure, largest, plural=None):
     return f"{name}: {verb} {count} {noun} (largest {measure} = {size})"
 
 
-def _rescaled(data, norms, good):
-    """``(data, norms, good)`` with the finite, non-zero rows whose norm over- or
+def _rescaled(data, norm, good):
+    """``(data, norm, good)`` with the finite, non-zero rows whose norm over- or
     underflowed divided by their largest component (the same rotation), their norms
     taken from that."""
-    import quatarray as qa
-
     fin = np.isfinite(data).all(axis=1)
     scale = np.abs(np.where(fin[:, None], data, 0)).max(axis=1)
     fix = ~good & fin & (scale > 0)
     if not fix.any():
-        return data, norms, good
-    data, norms = np.array(data), np.array(norms)  # copies: a chunk may be a read-only map
+        return data, norm, good
+    data, norm = np.array(data), np.array(norm)  # copies: a chunk may be a read-only map
     data[fix] /= scale[fix, None]
     with np.errstate(over="ignore"):
-        norms[fix] = qa.norm(data[fix]) * scale[fix]
-    return data, norms, good | fix
+        norm[fix] = norms(data[fix]) * scale[fix]
+    return data, norm, good | fix
 
 
 # deviations below rounding level are not worth a report (nor a normalisation); text
@@ -194,6 +197,22 @@ def _rescaled(data, norms, good):
 # (float32 sources printed with many digits)
 ROUNDING = {"f": 1e-6, "d": 1e-12}
 TEXT_ROUNDING = 1e-6
+
+
+def norms(q):
+    """|q| of each row of an ``(n, 4)`` array, in q's float type: the plain sum of
+    squares, without loading a kernel (over- or underflowing rows: :func:`_rescaled`)."""
+    q = np.asarray(q)
+    if q.dtype not in (np.float32, np.float64):
+        q = q.astype(np.float64)
+    q0, q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    with np.errstate(over="ignore", under="ignore"):  # inf or 0: such rows are rescaled
+        return np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+
+
+def dots(p, q):
+    """The 4-D inner product of the rows of two ``(n, 4)`` arrays (as :func:`quatarray.dot`)."""
+    return p[:, 0] * q[:, 0] + p[:, 1] * q[:, 1] + p[:, 2] * q[:, 2] + p[:, 3] * q[:, 3]
 
 
 def _fmt(row):

@@ -620,16 +620,17 @@ class TextReader(Reader):
 
     def _col(self, batch, c):
         import pyarrow as pa
-        import pyarrow.compute as pc
 
         col = batch.column(batch.schema.names.index(c))
         if col.type != pa.string():
             if self.ns_time and c == self.t:
-                return _ns_to_s(col.to_numpy(zero_copy_only=False))
-            return col.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+                return _ns_to_s(to_numpy(col))
+            return to_numpy(col).astype(np.float64, copy=False)
         if self.ns_time and c == self.t:
             vals = [_int_or_none(s) for s in col.to_pylist()]
             return np.array([np.nan if v is None else _ns_to_s(v) for v in vals], dtype=np.float64)
+        import pyarrow.compute as pc  # only here: importing it costs ~30 ms
+
         try:
             return pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
         except pa.ArrowInvalid:
@@ -727,6 +728,19 @@ class _Squeezed:
         self.closed = True
 
 
+def to_numpy(col):
+    """A numeric arrow array as numpy: without nulls, a read-only view of its data
+    buffer (pyarrow's own ``to_numpy`` imports pandas where it is installed, about
+    0.5 s of a command's start-up); otherwise pyarrow's conversion."""
+    dtype = _NUMPY.get(str(col.type))
+    if dtype is None or col.null_count:
+        return col.to_numpy(zero_copy_only=False)
+    return np.frombuffer(col.buffers()[1], dtype, count=len(col), offset=col.offset * dtype.itemsize)
+
+
+_NUMPY = {"double": np.dtype(np.float64), "float": np.dtype(np.float32), "int64": np.dtype(np.int64)}
+
+
 def _released(ref, timeout=2.0):
     """Wait until pyarrow's I/O threads have dropped the Python row handler `ref` points to.
 
@@ -801,7 +815,7 @@ class ParquetReader(Reader):
     def __iter__(self):
         row0 = 0
         for batch in self.file.iter_batches(batch_size=self.chunk, columns=self.columns):
-            get = lambda c: batch.column(batch.schema.names.index(c)).to_numpy(zero_copy_only=False)  # noqa: E731
+            get = lambda c: to_numpy(batch.column(batch.schema.names.index(c)))  # noqa: E731
             try:
                 t = get(self.t).astype(np.float64) if self.t else None
                 pos = np.column_stack([get(c) for c in self.pos]).astype(np.float64) if self.pos else None
