@@ -114,7 +114,8 @@ def _outer_sum(q, w, acc):
     # is first divided by its largest |component| (no overflow or underflow in the
     # squares, whatever its scale; a zero, inf or nan row makes acc nan).
     for i in range(q.shape[0]):
-        a = (float(q[i, 0]), float(q[i, 1]), float(q[i, 2]), float(q[i, 3]))
+        # np.float64, not float: without the JIT, 0/0 must give nan, not raise
+        a = (np.float64(q[i, 0]), np.float64(q[i, 1]), np.float64(q[i, 2]), np.float64(q[i, 3]))
         m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
         a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
         s = float(w[i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])

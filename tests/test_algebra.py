@@ -1,5 +1,7 @@
 """quatarray.algebra against scipy and independent formulas."""
 
+import os
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -540,6 +542,7 @@ print("ok")
 """
 
 
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="no threading layer without the JIT")
 def test_concurrent_threads_on_workqueue_layer(tmp_path):
     # issue 14.2: 4 threads in parallel kernels aborted the process on workqueue
     import os
