@@ -568,6 +568,13 @@ def cmd_bench(args):
     return int(_optional("bench", "bench").run(n=args.n, json_path=args.json) or 0)
 
 
+def cmd_warmup(args):
+    from ._warmup import warmup
+
+    print(warmup(dtype=args.dtype, verbose=sys.stderr.isatty()).table())
+    return 0
+
+
 def cmd_plot(args):
     mod = _optional("plot", "plot")
     check_output(args.OUT, [args.IN] + ([args.after] if args.after else []), args.force)
@@ -679,6 +686,11 @@ def build_parser():
     s.add_argument("--n", type=_rows, default=None, metavar="N", help="batch size")
     s.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     s.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("warmup", help="compile every kernel into the on-disk cache (images, CI, clusters)")
+    s.add_argument("--dtype", choices=("float64", "float32", "all"), default="all",
+                   help="float types to compile for (default all)")
+    s.set_defaults(func=cmd_warmup)
 
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")
