@@ -138,7 +138,7 @@ def _interpolate(qa, s):
 def _spline(method, new):
     def run(qa, s):
         for times in (s.times, s.times.astype(s.dtype)):
-            qa.spline(times, s.keys, getattr(s, new), method=method)
+            qa.spline(times, s.keys, getattr(s, new).astype(times.dtype), method=method)
 
     return run
 
