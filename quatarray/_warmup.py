@@ -67,7 +67,7 @@ def _samples(dtype, n=8, k=6):
     new_t = np.linspace(times[0], times[-1], 2 * k)
     return SimpleNamespace(
         dtype=d, p=p, q=q, v=rng.standard_normal((n, 3)).astype(d), t=rng.random(n).astype(d),
-        s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), m4=None, rv=rng.standard_normal((n, 3)).astype(d),
+        s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), rv=rng.standard_normal((n, 3)).astype(d),
         axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
         eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
         keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t),
@@ -332,9 +332,10 @@ def _jobs(dtypes, names):
 
 
 def _env(lock):
+    """The workers' environment: this one, with this process's import path (as
+    multiprocessing's spawn does), so they import the same quatarray."""
     env = dict(os.environ)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = os.pathsep.join([root] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
     env[_LOCK_ENV] = lock
     return env
 
@@ -396,9 +397,10 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
             return pending.pop() if pending else None
 
     def drive(env):
+        log = tempfile.TemporaryFile("w+")  # not a pipe: nobody reads it until the end
         proc = subprocess.Popen(
             [sys.executable, "-c", "from quatarray._warmup import _worker; _worker()"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, env=env,
         )
         try:
             while (job := next_job()) is not None:
@@ -406,7 +408,9 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
                 proc.stdin.flush()
                 line = proc.stdout.readline()
                 if not line:
-                    raise RuntimeError(f"warm-up worker failed on {job}: {proc.stderr.read()[-2000:]}")
+                    proc.wait()
+                    log.seek(0)
+                    raise RuntimeError(f"warm-up worker failed on {job}: {log.read()[-2000:]}")
                 res = Job(*json.loads(line))
                 done.append(res)
                 if verbose:
@@ -419,11 +423,12 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
         finally:
             proc.stdin.close()
             proc.wait()
+            log.close()
 
     t0 = time.perf_counter()
     with tempfile.NamedTemporaryFile(prefix="quatarray-warmup-", suffix=".lock") as lock:
         env = _env(lock.name)
-        threads = [threading.Thread(target=drive, args=(env,)) for _ in range(processes)]
+        threads = [threading.Thread(target=drive, args=(env,), daemon=True) for _ in range(processes)]
         for t in threads:
             t.start()
         for t in threads:

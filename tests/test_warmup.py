@@ -110,3 +110,11 @@ def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     slow = [j for j in res["jobs"] if j[3] > 1.0]
     assert not slow, f"first calls after warm-up slower than 1 s: {slow}"
     assert res["first"]["start-up"] < 3.0
+
+
+def test_command_line_verb():
+    from quatarray.cli import build_parser, cmd_warmup
+
+    args = build_parser().parse_args(["warmup", "--dtype", "float32"])
+    assert (args.func, args.dtype) == (cmd_warmup, "float32")
+    assert build_parser().parse_args(["warmup"]).dtype == "all"
