@@ -249,25 +249,29 @@ def _locked_cache_writes(path):
 
 
 def _run_job(qa, jit, name, dtype, variant, samples):
-    """Run one table entry; returns (seconds, number of functions numba compiled)."""
+    """Run one table entry: (seconds, number of functions numba compiled, error
+    message or "")."""
     from numba.core import event
 
     saved = jit.PARALLEL_MIN_ROWS
     jit.PARALLEL_MIN_ROWS = 0 if variant == "parallel" else sys.maxsize
     rec = event.RecordingListener()
+    error = ""
     t0 = time.perf_counter()
     try:
         with event.install_listener("numba:compile", rec):
             TABLE[name](qa, samples[dtype])
+    except Exception as exc:  # noqa: BLE001 - a kernel that does not compile is reported, the rest goes on
+        error = f"{type(exc).__name__}: {str(exc).splitlines()[-1] if str(exc) else ''}"[:300]
     finally:
         jit.PARALLEL_MIN_ROWS = saved
     seconds = time.perf_counter() - t0
-    return seconds, sum(1 for _, ev in rec.buffer if ev.is_start)
+    return seconds, sum(1 for _, ev in rec.buffer if ev.is_start), error
 
 
 def _worker():
     """The worker loop: one JSON job ``[name, dtype, variant]`` per line of stdin,
-    one JSON result ``[name, dtype, variant, seconds, compiled]`` per line of stdout."""
+    one JSON result ``[name, dtype, variant, seconds, compiled, error]`` per line of stdout."""
     import warnings
 
     import quatarray as qa
@@ -280,8 +284,8 @@ def _worker():
         name, dtype, variant = json.loads(line)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # gimbal lock, far angles, nan rows: the inputs are arbitrary
-            seconds, compiled = _run_job(qa, _jit, name, dtype, variant, samples)
-        print(json.dumps([name, dtype, variant, seconds, compiled]), flush=True)
+            result = _run_job(qa, _jit, name, dtype, variant, samples)
+        print(json.dumps([name, dtype, variant, *result]), flush=True)
 
 
 # --------------------------------------------------------------------------
@@ -290,14 +294,15 @@ def _worker():
 
 class Job(NamedTuple):
     """One warm-up job: a table entry, a float type, the row-loop variant, its
-    wall time in seconds and how many functions numba compiled for it (0: all
-    loaded from the cache)."""
+    wall time in seconds, how many functions numba compiled for it (0: all
+    loaded from the cache) and the error that stopped it ("" if none)."""
 
     name: str
     dtype: str
     variant: str
     seconds: float
     compiled: int
+    error: str = ""
 
 
 class Summary(NamedTuple):
@@ -309,6 +314,11 @@ class Summary(NamedTuple):
     processes: int
 
     @property
+    def failed(self):
+        """The jobs that raised (a kernel that does not compile, say)."""
+        return [j for j in self.jobs if j.error]
+
+    @property
     def compiled(self):
         """Number of functions numba compiled (0 when everything was in the cache)."""
         return sum(j.compiled for j in self.jobs)
@@ -318,9 +328,10 @@ class Summary(NamedTuple):
         lines = [f"{'function':<26} {'dtype':<8} {'loops':<9} {'seconds':>8} {'compiled':>9}"]
         for j in self.jobs:
             lines.append(f"{j.name:<26} {j.dtype:<8} {j.variant:<9} {j.seconds:>8.2f} {j.compiled:>9}")
+        lines += [f"FAILED {j.name} {j.dtype} {j.variant}: {j.error}" for j in self.failed]
         busy = sum(j.seconds for j in self.jobs)
         lines.append(
-            f"{len(self.jobs)} jobs, {self.compiled} functions compiled, {busy:.1f} s of work "
+            f"{len(self.jobs)} jobs ({len(self.failed)} failed), {self.compiled} functions compiled, {busy:.1f} s of work "
             f"in {self.wall:.1f} s wall on {self.processes} process(es)"
         )
         return "\n".join(lines)
@@ -369,7 +380,14 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
     Summary
         ``jobs`` (one :class:`Job` per table entry, float type and row-loop
         variant, slowest first), ``wall`` seconds, ``processes``;
-        ``summary.table()`` is the printable report.
+        ``summary.table()`` is the printable report. A job that raises (a
+        kernel that fails to compile) does not stop the others: it is listed
+        in ``summary.failed`` with its error.
+
+    Raises
+    ------
+    RuntimeError
+        A worker process died (its last output is in the message).
 
     Examples
     --------
@@ -415,7 +433,7 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
                 done.append(res)
                 if verbose:
                     print(f"{res.name} {res.dtype} {res.variant}: {res.seconds:.2f} s, "
-                          f"{res.compiled} compiled", file=sys.stderr, flush=True)
+                          f"{res.compiled} compiled {res.error}", file=sys.stderr, flush=True)
         except BaseException as exc:  # noqa: BLE001 - reported below, in the caller's thread
             errors.append(exc)
             with pending_lock:

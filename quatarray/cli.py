@@ -571,8 +571,9 @@ def cmd_bench(args):
 def cmd_warmup(args):
     from ._warmup import warmup
 
-    print(warmup(dtype=args.dtype, verbose=sys.stderr.isatty()).table())
-    return 0
+    summary = warmup(dtype=args.dtype, verbose=sys.stderr.isatty())
+    print(summary.table())
+    return 1 if summary.failed else 0
 
 
 def cmd_plot(args):
