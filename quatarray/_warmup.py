@@ -331,8 +331,8 @@ class Summary(NamedTuple):
         lines += [f"FAILED {j.name} {j.dtype} {j.variant}: {j.error}" for j in self.failed]
         busy = sum(j.seconds for j in self.jobs)
         lines.append(
-            f"{len(self.jobs)} jobs ({len(self.failed)} failed), {self.compiled} functions compiled, {busy:.1f} s of work "
-            f"in {self.wall:.1f} s wall on {self.processes} process(es)"
+            f"{len(self.jobs)} jobs ({len(self.failed)} failed), {self.compiled} functions compiled, "
+            f"{busy:.1f} s of work in {self.wall:.1f} s wall on {self.processes} process(es)"
         )
         return "\n".join(lines)
 

@@ -50,7 +50,7 @@ for names, d in ((names64, "float64"), (names32, "float32")):
             jobs.append([name, d, variant, *_warmup._run_job(qa, _jit, name, d, variant, samples)])
 rec = event.RecordingListener()
 with event.install_listener("numba:compile", rec):
-    big = qa.random(_jit.PARALLEL_MIN_ROWS, rng=1)
+    big = qa.random(min(max(_jit.PARALLEL_MIN_ROWS, 10), 10**6), rng=1)  # parallel at the default threshold
     qa.multiply(big, big)
     ro = big[:10].copy()
     ro.flags.writeable = False
