@@ -13,9 +13,15 @@ one written, as a quaternion product does) expressed in Mquat/s of the
 96-byte float64 product (32 bytes read from each operand, 32 written). A
 memory-bound kernel cannot beat it; the ``%stream`` column gives each
 quatarray rate as a fraction of it, counting the bytes that operation moves.
+The triads are timed again in each row's interleaved rounds and the
+fraction uses that row's triad rate, so a change of load between rows (a
+shared machine) does not move it. An operation returning a new array also
+pays for the fresh pages of its result (the system zeroes each one on first
+touch: an ``np.empty(...).fill()`` of the same size shows that cost), which
+the triad, writing into an existing array, does not.
 
 Use :func:`run` (the command line calls it) or the pieces: :func:`ceiling`,
-:func:`cases` and :func:`measure`.
+:func:`triads`, :func:`cases` and :func:`measure`.
 """
 
 import json
@@ -79,11 +85,12 @@ def measure(fns, budget=1.5, min_rounds=3, max_rounds=25, slow=3.0):
 # the machine's memory-stream ceiling
 
 
-def ceiling(n, budget=1.0):
-    """STREAM triad rate on ``n`` float64 quaternions: bytes/s and Mquat/s of a 96-byte product.
+def triads(n):
+    """The two STREAM triad candidates on ``n`` float64 quaternions (``4n`` doubles):
+    a dict of callables and the bytes each call moves.
 
-    Two candidates: numpy (``np.add(b, c, out=a)``, one thread) and a numba
-    ``prange`` triad (all threads); the faster one is the ceiling.
+    numpy (``np.add(b, c, out=a)``, one thread) and a numba ``prange`` triad
+    (all threads); the faster one is the ceiling.
     """
     import numba
 
@@ -95,13 +102,19 @@ def ceiling(n, budget=1.0):
     b = np.random.default_rng(0).random(4 * n)
     c = b[::-1].copy()
     a = np.empty_like(b)
-    t = measure({"numpy": lambda: np.add(b, c, out=a), "numba": lambda: triad(a, b, c, 3.0)}, budget)
-    nbytes = 3 * a.nbytes
+    return {"triad numpy": lambda: np.add(b, c, out=a), "triad numba": lambda: triad(a, b, c, 3.0)}, 3 * a.nbytes
+
+
+def ceiling(n, budget=1.0):
+    """STREAM triad rate on ``n`` float64 quaternions: bytes/s and Mquat/s of a 96-byte product
+    (see :func:`triads`)."""
+    fns, nbytes = triads(n)
+    t = measure(fns, budget)
     res = {k: nbytes / v for k, v in t.items()}
     best = max(res.values())
     return {
-        "triad_GBps_numpy_1thread": res["numpy"] / 1e9,
-        "triad_GBps_numba_threads": res["numba"] / 1e9,
+        "triad_GBps_numpy_1thread": res["triad numpy"] / 1e9,
+        "triad_GBps_numba_threads": res["triad numba"] / 1e9,
         "GBps": best / 1e9,
         "Mquat_s_product": best / 96 / 1e6,
     }
@@ -377,6 +390,7 @@ def _fmt_ratio(x):
 def results(n, budget=1.5, progress=None):
     """Measure every case: a list of dicts (op, items, rates in Mquat/s, ratios, %stream)."""
     ceil = ceiling(n)
+    triad_fns, triad_bytes = triads(n)
     rows = []
     for c in cases(n):
         if progress:
@@ -385,7 +399,9 @@ def results(n, budget=1.5, progress=None):
         if c.missing:
             row["status"] = f"{NOT_AVAILABLE}: quatarray.{c.missing[0]}"
         if c.fns:
-            best = measure(c.fns, budget)
+            # The triads run in the same interleaved rounds, so %stream compares
+            # rates measured under the same load.
+            best = measure({**c.fns, **(triad_fns if c.nbytes else {})}, budget)
             row["rates_Mquat_s"] = {lib: c.items / best[lib] / 1e6 for lib in LIBS if lib in best}
         rq = row["rates_Mquat_s"].get("quatarray")
         if rq is not None:
@@ -393,7 +409,8 @@ def results(n, budget=1.5, progress=None):
                 if lib != "quatarray":
                     row["ratios"][lib] = rq / r
             if c.nbytes:
-                row["stream_fraction"] = rq * 1e6 * c.nbytes / (ceil["GBps"] * 1e9)
+                row["stream_GBps"] = triad_bytes / min(best[k] for k in triad_fns) / 1e9
+                row["stream_fraction"] = rq * 1e6 * c.nbytes / (row["stream_GBps"] * 1e9)
         rows.append(row)
     by_op = {r["op"]: r for r in rows}
     for op32, op64 in (("multiply float32 (out=)", "multiply (out=)"), ("rotate float32 (out=)", "rotate (out=)")):

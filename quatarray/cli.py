@@ -848,6 +848,14 @@ def cmd_eval(args):
         on_invalid=args.on_invalid, force=args.force) or 0)
 
 
+def cmd_warmup(args):
+    from ._warmup import warmup
+
+    summary = warmup(dtype=args.dtype, verbose=sys.stderr.isatty())
+    print(summary.table())
+    return 1 if summary.failed else 0
+
+
 def cmd_plot(args):
     mod = _optional("plot", "plot")
     if args.seq is not None:
@@ -1005,6 +1013,11 @@ def build_parser():
     s.add_argument("--plot", metavar="OUT.png", help="errors over time and the aligned trajectories (needs matplotlib)")
     s.add_argument("--json", metavar="FILE", help="the statistics as JSON")
     s.set_defaults(func=cmd_eval)
+
+    s = sub.add_parser("warmup", help="compile every kernel into the on-disk cache (images, CI, clusters)")
+    s.add_argument("--dtype", choices=("float64", "float32", "all"), default="all",
+                   help="float types to compile for (default all)")
+    s.set_defaults(func=cmd_warmup)
 
     s = sub.add_parser("plot", parents=[io_opts], help="draw a stream (needs matplotlib)")
     s.add_argument("IN")

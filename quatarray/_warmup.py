@@ -1,0 +1,456 @@
+"""Compile every kernel into numba's on-disk cache ahead of time.
+
+:func:`warmup` calls every public function on small inputs of each float
+type, in the layouts the kernels specialise on (contiguous, read-only,
+strided, one row broadcast against many, ``out=``), once with the serial
+and once with the parallel row loops (see ``quatarray._jit.RowLoop``), so
+that a later process finds machine code on disk for every call it makes and
+compiles nothing. The calls run in worker processes, one per core, each
+taking the next job when it is done with one.
+
+The calls come from one table, :data:`TABLE`: a new public function is one
+line there (a test checks that every name of ``quatarray.__all__`` has one).
+
+Numba's cache index is not safe against two processes adding entries to the
+same function at once (both may pick the same data file name), so inside the
+workers every cache write holds an exclusive lock on one file.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from types import SimpleNamespace
+from typing import NamedTuple
+
+import numpy as np
+
+DTYPES = {"float64": ("float64",), "float32": ("float32",), "all": ("float64", "float32")}
+VARIANTS = ("serial", "parallel")
+_LOCK_ENV = "QUATARRAY_WARMUP_LOCK"
+
+try:
+    import fcntl
+except ImportError:  # Windows: one worker process
+    fcntl = None
+_CAN_LOCK = fcntl is not None
+
+# --------------------------------------------------------------------------
+# the calls
+
+
+def _samples(dtype, n=8, k=6):
+    """Small inputs of float type `dtype`: quaternions p, q, vectors v, t in [0, 1),
+    matrices m, rotation vectors rv, axes and angles, Euler angles, SU(2) matrices,
+    k keys with times, sorted and unsorted new times."""
+    rng = np.random.default_rng(0)
+    d = np.dtype(dtype)
+
+    def unit(rows):
+        a = rng.standard_normal((rows, 4))
+        return (a / np.linalg.norm(a, axis=1, keepdims=True)).astype(d)
+
+    p, q = unit(n), unit(n)
+    w, x, y, z = p.T.astype(np.float64)
+    m = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]).transpose(2, 0, 1)  # fmt: skip
+    su2 = np.empty((n, 2, 2), np.complex128 if d == np.float64 else np.complex64)
+    su2[:, 0, 0], su2[:, 0, 1] = w + 1j * x, y + 1j * z
+    su2[:, 1, 0], su2[:, 1, 1] = -y + 1j * z, w - 1j * x
+    times = np.cumsum(rng.uniform(0.5, 1.5, k))
+    new_t = np.linspace(times[0], times[-1], 2 * k)
+    return SimpleNamespace(
+        dtype=d, p=p, q=q, v=rng.standard_normal((n, 3)).astype(d), t=rng.random(n).astype(d),
+        s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), rv=rng.standard_normal((n, 3)).astype(d),
+        axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
+        eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
+        keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t),
+    )
+
+
+def _read_only(a):
+    b = a.copy()
+    b.flags.writeable = False
+    return b
+
+
+def _strided(a):
+    b = np.zeros((2 * a.shape[0],) + a.shape[1:], a.dtype)[::2]
+    b[...] = a
+    return b
+
+
+def _each(f, *args, out=False, **kw):
+    """``f(*args, **kw)`` with the array arguments contiguous, read-only and strided;
+    with each array argument in turn reduced to its first row (broadcast against
+    the others' batch); and with ``out=`` if asked."""
+    batch = [i for i, a in enumerate(args) if isinstance(a, np.ndarray) and a.ndim > 0]
+    for layout in (lambda a: a, _read_only, _strided):
+        f(*[layout(a) if i in batch else a for i, a in enumerate(args)], **kw)
+    if len(batch) > 1:
+        for i in batch:
+            f(*[a[0] if j == i else a for j, a in enumerate(args)], **kw)
+    if out:
+        r = f(*args, **kw)
+        f(*args, out=np.empty_like(r), **kw)
+        f(*args, out=_strided(np.empty_like(r)), **kw)
+
+
+def _interp(f, s, *extra, **kw):
+    """An interpolation function of ``(*quaternions, t)``: N pairs and N t, scalar t,
+    one pair and N t."""
+    _each(f, s.p, s.q, *extra, s.t, out=True, **kw)
+    f(s.p, s.q, *extra, 0.5, **kw)
+    f(s.p[0], s.q[0], *[e[0] for e in extra], s.t, **kw)
+
+
+def _vqs(qa, s):
+    return qa.VQS(s.v, s.p, s.s)
+
+
+def _vqm(qa, s):
+    return qa.VQM(s.v, s.q, s.m * s.s[:, None, None])
+
+
+def _transform(t, other, s):
+    """Every method of the transforms `t` (VQS or VQM), composed also with `other`."""
+    _each(t.apply, s.v, out=True)
+    t[0].apply(s.v)
+    t @ t, t[0] @ t, t @ other, other @ t, t.inverse(), t.as_matrix()
+    type(t).from_matrix(t.as_matrix())
+    type(t).identity(3, dtype=s.dtype)
+
+
+def _interpolate(qa, s):
+    a, b = _vqs(qa, s), _vqm(qa, s)
+    for x, y in ((a, a), (b, b), (a, b)):
+        qa.interpolate(x, y, s.t)
+        qa.interpolate(x, y, 0.5)
+        qa.interpolate(x[0], y[0], s.t)
+
+
+def _spline(method, new):
+    def run(qa, s):
+        for times in (s.times, s.times.astype(s.dtype)):
+            qa.spline(times, s.keys, getattr(s, new).astype(times.dtype), method=method)
+
+    return run
+
+
+def _f(name, call):
+    """A table entry calling the public function `name` as ``call(f, s)``."""
+    return lambda qa, s: call(getattr(qa, name), s)
+
+
+# name → call(qa, samples). Every public function has a line; the spline's
+# methods and its sorted/unsorted paths have one each (they are separate kernels).
+TABLE = {
+    # algebra
+    "multiply": _f("multiply", lambda f, s: _each(f, s.p, s.q, out=True)),
+    "conjugate": _f("conjugate", lambda f, s: _each(f, s.p, out=True)),
+    "inverse": _f("inverse", lambda f, s: _each(f, s.p, out=True)),
+    "norm": _f("norm", lambda f, s: _each(f, s.p)),
+    "normalize": _f("normalize", lambda f, s: _each(f, s.p, out=True)),
+    "dot": _f("dot", lambda f, s: _each(f, s.p, s.q)),
+    "exp": _f("exp", lambda f, s: _each(f, s.p, out=True)),
+    "log": _f("log", lambda f, s: _each(f, s.p, out=True)),
+    "power": _f("power", lambda f, s: (_each(f, s.p, s.t, out=True), f(s.p, 0.5))),
+    "cumprod": _f("cumprod", lambda f, s: (_each(f, s.p), f(s.p.reshape(2, -1, 4), axis=1))),
+    "identity": _f("identity", lambda f, s: f(3, dtype=s.dtype)),
+    "random": _f("random", lambda f, s: f(3, rng=0, dtype=s.dtype)),
+    "canonical": _f("canonical", lambda f, s: _each(f, s.p, out=True)),
+    "angle": _f("angle", lambda f, s: _each(f, s.p)),
+    "distance": _f("distance", lambda f, s: _each(f, s.p, s.q)),
+    "mean": _f("mean", lambda f, s: (_each(f, s.p), f(s.p, weights=s.s))),
+    # rotation
+    "rotate": _f("rotate", lambda f, s: _each(f, s.p, s.v, out=True)),
+    # conversions
+    "as_matrix": _f("as_matrix", lambda f, s: _each(f, s.p, out=True)),
+    "from_matrix": _f("from_matrix", lambda f, s: (
+        _each(f, s.m, out=True), _each(f, s.m, assume_valid=True, out=True), f(2 * s.m))),
+    "as_rotvec": _f("as_rotvec", lambda f, s: (_each(f, s.p, out=True), f(s.p, degrees=True))),
+    "from_rotvec": _f("from_rotvec", lambda f, s: (_each(f, s.rv, out=True), f(s.rv, degrees=True))),
+    "as_axis_angle": _f("as_axis_angle", lambda f, s: (_each(f, s.p), f(s.p, degrees=True))),
+    "from_axis_angle": _f("from_axis_angle", lambda f, s: (
+        _each(f, s.axis, s.ang, out=True), f(s.axis, 0.5), f(s.axis, s.ang, degrees=True))),
+    "as_xyzw": _f("as_xyzw", lambda f, s: _each(f, s.p, out=True)),
+    "from_xyzw": _f("from_xyzw", lambda f, s: _each(f, s.p, out=True)),
+    "to_scipy": _f("to_scipy", lambda f, s: f(s.p)),
+    "from_scipy": lambda qa, s: qa.from_scipy(qa.to_scipy(s.p)),
+    "as_left_matrix": _f("as_left_matrix", lambda f, s: _each(f, s.p, out=True)),
+    "as_right_matrix": _f("as_right_matrix", lambda f, s: _each(f, s.p, out=True)),
+    "as_su2": _f("as_su2", lambda f, s: _each(f, s.p)),
+    "from_su2": _f("from_su2", lambda f, s: _each(f, s.su2, out=True)),
+    # Euler angles (proper and Tait-Bryan, extrinsic and intrinsic; far angles take a second kernel)
+    "as_euler": _f("as_euler", lambda f, s: [
+        (_each(f, s.p, seq), f(s.p, seq, degrees=True)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
+    "from_euler": _f("from_euler", lambda f, s: [
+        (_each(f, seq, s.eul), f(seq, s.eul, degrees=True), f(seq, 1e7 * s.eul)) for seq in ("xyz", "ZXZ")]),
+    # interpolation
+    "lerp": _f("lerp", lambda f, s: _interp(f, s)),
+    "nlerp": _f("nlerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
+    "slerp": _f("slerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
+    "double": _f("double", lambda f, s: _each(f, s.p, s.q, out=True)),
+    "bisect": _f("bisect", lambda f, s: _each(f, s.p, s.q, out=True)),
+    "bezier_controls": _f("bezier_controls", lambda f, s: (_each(f, s.keys), f(s.keys, s.times))),
+    "bezier": _f("bezier", lambda f, s: _interp(lambda q0, q1, a, b, t, **kw: f(q0, a, b, q1, t, **kw), s, s.p, s.q)),
+    "squad": _f("squad", lambda f, s: _interp(lambda q0, q1, a, b, t, **kw: f(q0, a, b, q1, t, **kw), s, s.p, s.q)),
+    "unflip": _f("unflip", lambda f, s: (_each(f, s.p), f(s.p.reshape(2, -1, 4), axis=1))),
+    "spline[bezier]": _spline("bezier", "new_sorted"),
+    "spline[bezier, unsorted]": _spline("bezier", "new_unsorted"),
+    "spline[slerp]": _spline("slerp", "new_sorted"),
+    "spline[slerp, unsorted]": _spline("slerp", "new_unsorted"),
+    "spline[nlerp]": _spline("nlerp", "new_sorted"),
+    "spline[nlerp, unsorted]": _spline("nlerp", "new_unsorted"),
+    "spline[squad]": _spline("squad", "new_sorted"),
+    "spline[squad, unsorted]": _spline("squad", "new_unsorted"),
+    "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
+    # transforms
+    "VQS": lambda qa, s: _transform(_vqs(qa, s), _vqm(qa, s), s),
+    "VQM": lambda qa, s: _transform(_vqm(qa, s), _vqs(qa, s), s),
+    "interpolate": _interpolate,
+}
+
+
+def covered(name):
+    """True when `name` (a public name of quatarray) has a line in :data:`TABLE`."""
+    return name in TABLE or any(k.startswith(name + "[") for k in TABLE)
+
+
+# --------------------------------------------------------------------------
+# the worker process
+
+
+def _locked_cache_writes(path):
+    """Make numba's cache writes in this process hold an exclusive lock on `path`.
+
+    Numba's index update (read the index, pick a free data file name, write
+    both) is not atomic across processes: two workers adding entries to one
+    function at once could both pick the same file name."""
+    from numba.core.caching import IndexDataCacheFile
+
+    save = IndexDataCacheFile.save
+
+    def locked_save(self, key, data):
+        with open(path, "a") as f:
+            fcntl.flock(f, fcntl.LOCK_EX)
+            try:
+                save(self, key, data)
+            finally:
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+    IndexDataCacheFile.save = locked_save
+
+
+def _run_job(qa, jit, name, dtype, variant, samples):
+    """Run one table entry: (seconds, number of functions numba compiled, error
+    message or "")."""
+    from numba.core import event
+
+    saved = jit.PARALLEL_MIN_ROWS
+    jit.PARALLEL_MIN_ROWS = 0 if variant == "parallel" else sys.maxsize
+    rec = event.RecordingListener()
+    error = ""
+    t0 = time.perf_counter()
+    try:
+        with event.install_listener("numba:compile", rec):
+            TABLE[name](qa, samples[dtype])
+    except Exception as exc:  # noqa: BLE001 - a kernel that does not compile is reported, the rest goes on
+        error = f"{type(exc).__name__}: {str(exc).splitlines()[-1] if str(exc) else ''}"[:300]
+    finally:
+        jit.PARALLEL_MIN_ROWS = saved
+    seconds = time.perf_counter() - t0
+    return seconds, sum(1 for _, ev in rec.buffer if ev.is_start), error
+
+
+def _worker():
+    """The worker loop: one JSON job ``[name, dtype, variant]`` per line of stdin,
+    one JSON result ``[name, dtype, variant, seconds, compiled, error]`` per line of stdout."""
+    import warnings
+
+    import quatarray as qa
+    from quatarray import _jit
+
+    if os.environ.get(_LOCK_ENV) and _CAN_LOCK:
+        _locked_cache_writes(os.environ[_LOCK_ENV])
+    samples = {d: _samples(d) for d in DTYPES["all"]}
+    for line in sys.stdin:
+        name, dtype, variant = json.loads(line)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # gimbal lock, far angles, nan rows: the inputs are arbitrary
+            result = _run_job(qa, _jit, name, dtype, variant, samples)
+        print(json.dumps([name, dtype, variant, *result]), flush=True)
+
+
+# --------------------------------------------------------------------------
+# the driver
+
+
+class Job(NamedTuple):
+    """One warm-up job: a table entry, a float type, the row-loop variant, its
+    wall time in seconds, how many functions numba compiled for it (0: all
+    loaded from the cache) and the error that stopped it ("" if none)."""
+
+    name: str
+    dtype: str
+    variant: str
+    seconds: float
+    compiled: int
+    error: str = ""
+
+
+class Summary(NamedTuple):
+    """What :func:`warmup` did: the jobs (slowest first), the wall time and the
+    number of worker processes."""
+
+    jobs: list
+    wall: float
+    processes: int
+
+    @property
+    def failed(self):
+        """The jobs that raised (a kernel that does not compile, say)."""
+        return [j for j in self.jobs if j.error]
+
+    @property
+    def compiled(self):
+        """Number of functions numba compiled (0 when everything was in the cache)."""
+        return sum(j.compiled for j in self.jobs)
+
+    def table(self):
+        """The report as text: one line per job, then the totals."""
+        lines = [f"{'function':<26} {'dtype':<8} {'loops':<9} {'seconds':>8} {'compiled':>9}"]
+        for j in self.jobs:
+            lines.append(f"{j.name:<26} {j.dtype:<8} {j.variant:<9} {j.seconds:>8.2f} {j.compiled:>9}")
+        lines += [f"FAILED {j.name} {j.dtype} {j.variant}: {j.error}" for j in self.failed]
+        busy = sum(j.seconds for j in self.jobs)
+        lines.append(
+            f"{len(self.jobs)} jobs ({len(self.failed)} failed), {self.compiled} functions compiled, "
+            f"{busy:.1f} s of work in {self.wall:.1f} s wall on {self.processes} process(es)"
+        )
+        return "\n".join(lines)
+
+
+def _jobs(dtypes, names):
+    order = [n for n in names if n.startswith("spline")] + [n for n in names if not n.startswith("spline")]
+    return [(n, d, v) for n in order for d in dtypes for v in VARIANTS]
+
+
+def _env(lock):
+    """The workers' environment: this one, with this process's import path (as
+    multiprocessing's spawn does), so they import the same quatarray."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
+    env[_LOCK_ENV] = lock
+    return env
+
+
+def warmup(dtype="all", processes=None, verbose=False, names=None):
+    """Compile every kernel into numba's on-disk cache, in parallel worker processes.
+
+    Every public function is called on small inputs of each float type, in
+    the layouts the kernels specialise on (contiguous, read-only, strided,
+    one row broadcast against many, ``out=``), with the serial and with the
+    parallel row loops. Afterwards a new process compiles nothing: its first
+    call of any function loads machine code from the cache. Run it once when
+    building a container image, in CI before the tests, or on each machine of
+    a cluster (``client.run(qa.warmup)`` on Dask workers); see the README.
+    The cache is numba's: ``NUMBA_CACHE_DIR`` if set, else ``__pycache__``
+    beside the sources (or the user's cache folder when those are read-only).
+
+    Parameters
+    ----------
+    dtype : {"all", "float64", "float32"}, optional
+        Float types to compile for (default both).
+    processes : int, optional
+        Worker processes (default: one per core, ``os.cpu_count()``).
+    verbose : bool, optional
+        Print each job as it ends (to stderr).
+    names : iterable of str, optional
+        Only these entries of :data:`TABLE` (default all).
+
+    Returns
+    -------
+    Summary
+        ``jobs`` (one :class:`Job` per table entry, float type and row-loop
+        variant, slowest first), ``wall`` seconds, ``processes``;
+        ``summary.table()`` is the printable report. A job that raises (a
+        kernel that fails to compile) does not stop the others: it is listed
+        in ``summary.failed`` with its error.
+
+    Raises
+    ------
+    RuntimeError
+        A worker process died (its last output is in the message).
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> s = qa.warmup(dtype="float32", names=["multiply"], processes=1)
+    >>> [(j.name, j.dtype, j.variant) for j in sorted(s.jobs)]
+    [('multiply', 'float32', 'parallel'), ('multiply', 'float32', 'serial')]
+    """
+    if dtype not in DTYPES:
+        raise ValueError(f"Expected `dtype` to be one of {sorted(DTYPES)}, got {dtype!r}.")
+    names = list(TABLE) if names is None else list(names)
+    unknown = [n for n in names if n not in TABLE]
+    if unknown:
+        raise ValueError(f"Expected `names` from quatarray._warmup.TABLE, got {unknown[0]!r}.")
+    todo = _jobs(DTYPES[dtype], names)
+    processes = max(1, min(int(processes or os.cpu_count() or 1), len(todo)))
+    if not _CAN_LOCK:
+        processes = 1  # no file lock to make numba's cache writes safe across processes
+    pending = list(reversed(todo))
+    pending_lock = threading.Lock()
+    done, errors = [], []
+
+    def next_job():
+        with pending_lock:
+            return pending.pop() if pending else None
+
+    def drive(env):
+        log = tempfile.TemporaryFile("w+")  # not a pipe: nobody reads it until the end
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from quatarray._warmup import _worker; _worker()"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, env=env,
+        )
+        try:
+            while (job := next_job()) is not None:
+                proc.stdin.write(json.dumps(job) + "\n")
+                proc.stdin.flush()
+                line = proc.stdout.readline()
+                if not line:
+                    proc.wait()
+                    log.seek(0)
+                    raise RuntimeError(f"warm-up worker failed on {job}: {log.read()[-2000:]}")
+                res = Job(*json.loads(line))
+                done.append(res)
+                if verbose:
+                    print(f"{res.name} {res.dtype} {res.variant}: {res.seconds:.2f} s, "
+                          f"{res.compiled} compiled {res.error}", file=sys.stderr, flush=True)
+        except BaseException as exc:  # noqa: BLE001 - reported below, in the caller's thread
+            errors.append(exc)
+            with pending_lock:
+                pending.clear()
+        finally:
+            proc.stdin.close()
+            proc.wait()
+            log.close()
+
+    t0 = time.perf_counter()
+    with tempfile.NamedTemporaryFile(prefix="quatarray-warmup-", suffix=".lock") as lock:
+        env = _env(lock.name)
+        threads = [threading.Thread(target=drive, args=(env,), daemon=True) for _ in range(processes)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    if errors:
+        raise errors[0]
+    return Summary(sorted(done, key=lambda j: -j.seconds), time.perf_counter() - t0, processes)

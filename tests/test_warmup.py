@@ -1,0 +1,121 @@
+"""``quatarray.warmup``: after it, a new process compiles nothing.
+
+The cache test warms a fresh ``NUMBA_CACHE_DIR`` in a subprocess and then, in
+another new process, makes the warm-up's own calls again and some ordinary
+calls, counting numba's compile events (``numba:compile`` is broadcast only
+when a dispatcher really compiles, not when it loads from the cache).
+
+It warms a representative part of the table (``WARM``: row loops of
+algebra, conversions and Euler angles, serial and parallel, every layout) in
+float64 and one function in float32: about 50 s on a loaded two-core machine
+(20 s idle). The interpolation kernels are left out while they take about a
+minute each to compile (a spline, slerp: 30-60 s per variant, the Bézier
+spline twice that). ``QUATARRAY_TEST_WARMUP=all`` warms and checks the whole
+table instead (float64; many minutes).
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+import quatarray as qa
+from quatarray import _warmup
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+WARM = ["multiply", "normalize", "as_matrix", "from_matrix", "as_euler"]
+WARM32 = ["multiply"]
+
+# In the new process: the warm-up's calls (each timed, with its compile count),
+# then ordinary calls: a batch large enough for the parallel row loops, a
+# read-only input, a single quaternion, float32.
+_CHECK = r"""
+import json, sys, time
+import numpy as np
+from numba.core import event
+import quatarray as qa
+from quatarray import _jit, _warmup
+
+names64, names32 = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+samples = {d: _warmup._samples(d) for d in ("float64", "float32")}
+t0 = time.perf_counter()
+qa.multiply(samples["float64"].p, samples["float64"].q)  # numba's own start-up
+first = {"start-up": time.perf_counter() - t0}
+jobs = []
+for names, d in ((names64, "float64"), (names32, "float32")):
+    for name in names:
+        for variant in _warmup.VARIANTS:
+            jobs.append([name, d, variant, *_warmup._run_job(qa, _jit, name, d, variant, samples)])
+rec = event.RecordingListener()
+with event.install_listener("numba:compile", rec):
+    big = qa.random(min(max(_jit.PARALLEL_MIN_ROWS, 10), 10**6), rng=1)  # parallel at the default threshold
+    qa.multiply(big, big)
+    ro = big[:10].copy()
+    ro.flags.writeable = False
+    qa.as_matrix(ro)
+    qa.multiply(big[0], big[:10])
+    qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
+ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
+print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
+"""
+
+
+def _env(cache):
+    env = dict(os.environ)
+    env["NUMBA_CACHE_DIR"] = str(cache)
+    env["PYTHONPATH"] = os.pathsep.join([ROOT] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    env.pop("QUATARRAY_NO_CACHE", None)
+    return env
+
+
+def test_table_covers_every_public_function():
+    missing = [n for n in qa.__all__ if n != "warmup" and not _warmup.covered(n)]
+    assert not missing, f"add a line to quatarray._warmup.TABLE for {missing}"
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="dtype"):
+        qa.warmup(dtype="float16")
+    with pytest.raises(ValueError, match="names"):
+        qa.warmup(names=["no_such_function"])
+
+
+@pytest.mark.slow
+def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
+    # May take minutes with QUATARRAY_TEST_WARMUP=all (see the module docstring).
+    names64 = list(_warmup.TABLE) if os.environ.get("QUATARRAY_TEST_WARMUP") == "all" else WARM
+    env = _env(tmp_path / "cache")
+    warm = (
+        "import json, sys, quatarray as qa\n"
+        "a = qa.warmup(dtype='float64', names=json.loads(sys.argv[1]))\n"
+        "b = qa.warmup(dtype='float32', names=json.loads(sys.argv[2]))\n"
+        "print(json.dumps([a.compiled, b.compiled, len(a.jobs), len(b.jobs), a.failed + b.failed]))\n"
+    )
+    args = [json.dumps(names64), json.dumps(WARM32)]
+    out = subprocess.run([sys.executable, "-c", warm, *args], env=env, capture_output=True, text=True, check=True)
+    compiled64, compiled32, jobs64, jobs32, failed = json.loads(out.stdout.splitlines()[-1])
+    assert not failed
+    assert compiled64 > 0 and compiled32 > 0  # it really was cold
+    assert (jobs64, jobs32) == (2 * len(names64), 2 * len(WARM32))  # serial and parallel
+
+    out = subprocess.run([sys.executable, "-c", _CHECK, *args], env=env, capture_output=True, text=True, check=True)
+    res = json.loads(out.stdout.splitlines()[-1])
+    recompiled = [j for j in res["jobs"] if j[4] or j[5]]
+    assert not recompiled, f"compiled again after warm-up: {recompiled}"
+    assert res["ordinary"] == 0
+    # First calls load machine code only: about 0.01-0.1 s each (the budget is
+    # 0.3 s; the bound is loose because the machine is shared). Numba's own
+    # start-up (its first call in a process) is timed apart.
+    slow = [j for j in res["jobs"] if j[3] > 1.0]
+    assert not slow, f"first calls after warm-up slower than 1 s: {slow}"
+    assert res["first"]["start-up"] < 3.0
+
+
+def test_command_line_verb():
+    from quatarray.cli import build_parser, cmd_warmup
+
+    args = build_parser().parse_args(["warmup", "--dtype", "float32"])
+    assert (args.func, args.dtype) == (cmd_warmup, "float32")
+    assert build_parser().parse_args(["warmup"]).dtype == "all"
