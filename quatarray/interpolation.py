@@ -295,22 +295,40 @@ def _bisect(p, q, out):
             st4flat(out, i, bisect4(ld4flat(p, i), ld4flat(q, i)))
 
 
-@rowloop(rows=1)
-def _bezier_inner(q, f_out, f_in, a, b):
-    """Controls of the interior keys 1 … K−2 (flat arrays; row i is key i + 1), one
-    pass: â = bisect(double(q_{n−1}, q_n), q_{n+1}), a₀ = slerp(q_n, â, 1/3),
-    a_n = slerp(q_n, a₀, f_out), b_n = slerp(q_n, double(a₀, q_n), f_in)."""
-    n = f_out.shape[0]
-    third = like(f_out, 1.0) / like(f_out, 3.0)
+@inline
+def controls4(qp, qn, qx, f_out, f_in):
+    """(a_n, b_n) of key qn between qp and qx: â = bisect(double(qp, qn), qx),
+    a₀ = slerp(qn, â, 1/3), a_n = slerp(qn, a₀, f_out), b_n = slerp(qn, double(a₀, qn), f_in)."""
     zero = like(f_out, 0.0)
+    a0 = slerp4(qn, bisect4(double4(qp, qn), qx), like(f_out, 1.0) / like(f_out, 3.0), zero)
+    return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
+
+
+@rowloop(rows=1)
+def _bezier_controls(q, f_out, f_in, a, b):
+    """Controls of all K keys (flat (4K,) arrays), one pass. The end keys take the
+    phantom keys q_{−1} = double(q_1, q_0) and q_K = double(q_{K−2}, q_{K−1}), for
+    which :func:`controls4` gives a_0 = slerp(q_0, q_1, 1/3) and b_{K−1} =
+    slerp(q_{K−1}, q_{K−2}, 1/3) (to rounding)."""
+    k = f_out.shape[0]
+    q0 = ld4flat(q, 0)
+    q1 = ld4flat(q, 1)
+    ends = controls4(double4(q1, q0), q0, q1, ld1(f_out, 0), ld1(f_in, 0))
+    st4flat(a, 0, ends[0])
+    st4flat(b, 0, ends[1])
+    qm = ld4flat(q, k - 2)
+    ql = ld4flat(q, k - 1)
+    ends = controls4(qm, ql, double4(qm, ql), ld1(f_out, k - 1), ld1(f_in, k - 1))
+    st4flat(a, k - 1, ends[0])
+    st4flat(b, k - 1, ends[1])
+    n = k - 2  # the interior keys 1 … K−2
     for blk in prange((n + ROWS - 1) // ROWS):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        for k in range(min(n - lo, ROWS)):
-            i = lo + k
-            qn = ld4flat(q, i + 1)
-            a0 = slerp4(qn, bisect4(double4(ld4flat(q, i), qn), ld4flat(q, i + 2)), third, zero)
-            st4flat(a, i, slerp4(qn, a0, ld1(f_out, i), zero))
-            st4flat(b, i, slerp4(qn, double4(a0, qn), ld1(f_in, i), zero))
+        for j in range(min(n - lo, ROWS)):
+            i = lo + j + 1
+            r = controls4(ld4flat(q, i - 1), ld4flat(q, i), ld4flat(q, i + 1), ld1(f_out, i), ld1(f_in, i))
+            st4flat(a, i, r[0])
+            st4flat(b, i, r[1])
 
 
 @rowloop(rows=4)
@@ -921,17 +939,10 @@ def bezier_controls(keys, times=None):
     else:
         t = _times(times, k)
         f_out, f_in = _tangent_scales(np.diff(t))
-    a = np.empty(q.shape, q.dtype)  # C order: rows 1 … K−2 are flat views
+    a = np.empty(q.shape, q.dtype)
     b = np.empty(q.shape, q.dtype)
-    third = 1 / 3
-    a[0] = slerp(q[0], q[1], third, shortest=False)
-    b[0] = double(a[0], q[0])
-    b[-1] = slerp(q[-1], q[-2], third, shortest=False)
-    a[-1] = double(b[-1], q[-1])
-    if k > 2:
-        qf = np.ascontiguousarray(q).reshape(-1)
-        _bezier_inner(qf, f_out[1:-1].astype(q.dtype), f_in[1:-1].astype(q.dtype),
-                      a[1:-1].reshape(-1), b[1:-1].reshape(-1))
+    _bezier_controls(np.ascontiguousarray(q).reshape(-1), f_out.astype(q.dtype), f_in.astype(q.dtype),
+                     a.reshape(-1), b.reshape(-1))
     return a, b
 
 
