@@ -102,6 +102,17 @@ def inline(fn):
     return _njit(fn, forceinline=True)
 
 
+def ir_inline(fn):
+    """`fn` compiled as numba-IR inlined into its callers (``inline="always"``).
+
+    Only for a large loop that one caller runs, whose own calls are to compiled
+    element functions (no nested IR inlining, which multiplies compile time): the
+    caller then compiles and optimises it as part of itself, where a call to a
+    separate kernel has LLVM optimise its code once more in every caller above it.
+    """
+    return _njit(fn, inline="always")
+
+
 class RowLoop:
     """A batched kernel with a serial and a parallel variant.
 

@@ -24,17 +24,17 @@ from . import _elements as E
 from numba import types
 from numba.extending import overload
 
-from ._jit import INLINE_OPTIONS, element, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
+from ._jit import INLINE_OPTIONS, element, ir_inline, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
 from ._trig import half_arc, sincos
 from ._validate import as_float, as_times, check_core, elementwise, scan, shape_error
 
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
-# Runs of fewer samples than RUN_MIN in one segment (keys about as dense as the
-# new times) are gathered, TILE samples at a time, into a column-major tile of
-# their segments' rows and evaluated there as SIMD lanes (see _eval_bezier).
+# The Bézier samples are gathered, TILE at a time, into a column-major tile of
+# their segments' rows and evaluated there as SIMD lanes (see _eval_bezier):
+# one copy of the long de Casteljau chain serves runs of any length (a separate
+# loop for long runs in one segment was no faster, and doubled its compile time).
 TILE = 64
-RUN_MIN = 8
 # rows per block of a row loop: prange runs over blocks and the plain inner
 # loop is what LLVM vectorises (a prange loop body itself is not vectorised)
 ROWS = 1024
@@ -424,12 +424,16 @@ def put_arc(seg, n, c, p, q):
     put(seg, n, c + 1, v)
 
 
-@rowloop(rows=4)
-def _segments(q, c_out, c_in, kind, seg):
+KIND = 1  # rebound in each method's copy of _segments (see _SEGMENTS)
+
+
+def _segments(q, c_out, c_in, seg):
     """Row n of a spline's segment table, written once: q_n, c_out[n], c_in[n+1],
     q_{n+1}, then the fixed arcs its evaluation loop needs (see the table's layout
-    below): ``kind`` 1 (Bézier) q_n → c_out[n] → c_in[n+1] → q_{n+1}; 2 (squad)
-    q_n → q_{n+1} and c_out[n] → c_in[n+1]; 0 (slerp, nlerp) q_n → q_{n+1}."""
+    below): ``KIND`` 1 (Bézier) q_n → c_out[n] → c_in[n+1] → q_{n+1}; 2 (squad)
+    q_n → q_{n+1} and c_out[n] → c_in[n+1]; 0 (slerp) q_n → q_{n+1}; 3 (nlerp) none.
+    ``KIND`` is a constant of each method's compiled copy, so each compiles only
+    the arcs it writes."""
     for n in prange(seg.shape[0]):
         p = ld4(q, n)
         r = ld4(q, n + 1)
@@ -439,14 +443,14 @@ def _segments(q, c_out, c_in, kind, seg):
         put(seg, n, 4, a)
         put(seg, n, 8, b)
         put(seg, n, 12, r)
-        if kind == 1:
+        if KIND == 1:
             put_arc(seg, n, 16, p, a)
             put_arc(seg, n, 21, a, b)
             put_arc(seg, n, 26, b, r)
-        elif kind == 2:
+        if KIND == 2:
             put_arc(seg, n, 16, p, r)
             put_arc(seg, n, 21, a, b)
-        else:
+        if KIND == 0:
             put_arc(seg, n, 16, p, r)
 
 
@@ -514,7 +518,7 @@ def seg_keys(seg, n):
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
 # 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`put_arc`) at 16, 21, 26
-# (written by `_segments`).
+# (written by `_segments`, one copy per method in `_SEGMENTS`).
 #
 # The evaluation loops go segment by segment: for each run of samples in one
 # segment (the whole run when new times are sorted, single samples when not)
@@ -607,19 +611,6 @@ def bezier_tile(tile, u, res, rows, count, out):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
 
 
-@kernel
-def bezier_run(seg, n, new_t, j, e, t0, h, out):
-    """Samples j … e − 1, all in the segment of row n of the table (SIMD over the samples)."""
-    x0 = like(seg, 0.0)
-    q0, a, b, q1 = seg_keys(seg, n)
-    # level 1 runs on the three fixed control arcs: only the weights per sample
-    c0 = seg_arc(seg, n, 16)
-    c1 = seg_arc(seg, n, 21)
-    c2 = seg_arc(seg, n, 26)
-    for i in range(j, e):
-        st4flat(out, i, bezier_seg(q0, a, b, q1, c0, c1, c2, like(x0, (ld1(new_t, i) - t0) / h)))
-
-
 @rowloop(rows=1)
 def _eval_bezier(times, new_t, seg, out):
     m = new_t.shape[0]
@@ -628,7 +619,7 @@ def _eval_bezier(times, new_t, seg, out):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
-        # short runs wait in a tile: their segments' rows column by column, u, and the sample
+        # samples wait in a tile: their segments' rows column by column, u, and the sample
         tile = np.empty(NSEG * TILE, seg.dtype)
         u = np.empty(TILE, seg.dtype)
         res = np.empty(4 * TILE, seg.dtype)
@@ -639,18 +630,15 @@ def _eval_bezier(times, new_t, seg, out):
             t0 = times[sg]
             h = times[sg + 1] - t0
             n = NSEG * sg
-            if e - j < RUN_MIN:
-                for i in range(j, e):
-                    for c in range(NSEG):
-                        tile[c * TILE + count] = seg[n + c]
-                    u[count] = like(x0, (new_t[i] - t0) / h)
-                    rows[count] = i
-                    count += 1
-                    if count == TILE:
-                        bezier_tile(tile, u, res, rows, count, out)
-                        count = np.int64(0)
-            else:
-                bezier_run(seg, n, new_t, j, e, t0, h, out)
+            for i in range(j, e):
+                for c in range(NSEG):
+                    tile[c * TILE + count] = seg[n + c]
+                u[count] = like(x0, (new_t[i] - t0) / h)
+                rows[count] = i
+                count += 1
+                if count == TILE:
+                    bezier_tile(tile, u, res, rows, count, out)
+                    count = np.int64(0)
             j = e
         bezier_tile(tile, u, res, rows, count, out)
 
@@ -703,28 +691,40 @@ def _interval_rates(q, h, body, w):
 # the samples, a table of about 1 MB that stays in cache) and evaluates its
 # samples from them; the pieces run in parallel.
 PIECE = 4096
-_segments_1 = _segments.serial
-_eval_1 = _eval_bezier.serial  # rebound in each method's copy (_PIECES)
+_segments_1 = _eval_1 = None  # bound in each method's copy (_PIECES)
 
 
-def _spline_pieces(times, new_t, q, c_out, c_in, kind, out):
+@inline
+def seg_index(times, t):
+    """The segment of time t: the largest n ≤ K − 2 with times[n] ≤ t (0 before times[0])."""
+    lo = 0
+    hi = times.shape[0] - 1  # invariant: lo == 0 or times[lo] <= t; the answer is below hi
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if times[mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _spline_pieces(times, new_t, q, c_out, c_in, out):
     """:func:`spline`'s table and evaluation for sorted `new_t`, piece by piece.
 
-    `kind` as :func:`_segments`; `out` flat (4m,); ``_eval_1`` is the serial
-    evaluation loop of the method (one compiled copy per method, see
+    `out` flat (4m,); ``_segments_1`` and ``_eval_1`` are the serial table and
+    evaluation loops of the method (one compiled copy per method, see
     ``_PIECES``). Samples are assigned to segments as in the whole table (a
     piece's last segment ends before the next piece's first sample, except the
     stream's last segment, which includes times[K−1]).
     """
     m = new_t.shape[0]
-    k = times.shape[0]
     for p in prange((m + PIECE - 1) // PIECE):
         j0 = p * PIECE
         j1 = min(m, j0 + PIECE)
-        s0 = min(np.searchsorted(times, new_t[j0], side="right") - 1, k - 2)
-        s1 = min(np.searchsorted(times, new_t[j1 - 1], side="right") - 1, k - 2) + 1
+        s0 = seg_index(times, new_t[j0])
+        s1 = seg_index(times, new_t[j1 - 1]) + 1
         seg = np.empty((s1 - s0, NSEG), out.dtype)
-        _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], kind, seg)
+        _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], seg)
         _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[4 * j0 : 4 * j1])
 
 
@@ -1076,7 +1076,13 @@ def _n_outside(lo, hi, x):
 
 
 _SPLINE = {"bezier": _eval_bezier, "slerp": _eval_slerp, "nlerp": _eval_nlerp, "squad": _eval_squad}
-_PIECES = {m: rowloop(rows=1)(specialise(_spline_pieces, f"_{m}", _eval_1=ev.serial)) for m, ev in _SPLINE.items()}
+_KINDS = {"bezier": 1, "squad": 2, "slerp": 0, "nlerp": 3}  # the arcs each method's table holds
+_SEGMENTS = {m: rowloop(rows=3)(specialise(_segments, f"_{m}", KIND=kind)) for m, kind in _KINDS.items()}
+_PIECES = {
+    m: rowloop(rows=1)(specialise(_spline_pieces, f"_{m}", _eval_1=ir_inline(specialise(ev.py_func, "_piece")),
+                                  _segments_1=ir_inline(specialise(_SEGMENTS[m].py_func, "_piece"))))
+    for m, ev in _SPLINE.items()
+}
 
 
 def _seconds(t_raw, nt_raw, origin):
@@ -1187,20 +1193,17 @@ def _spline_unit(t, nt, q, method):
     k = q.shape[0]
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
     c_out = c_in = q  # slerp, nlerp: no controls (the table's columns 4-11 repeat the keys)
-    kind = 0
     if method == "bezier":
         c_out, c_in = bezier_controls(q, t)
-        kind = 1
     elif method == "squad":
         c_out = c_in = squad_controls(q)
-        kind = 2
     m = flat_nt.shape[0]
     out = np.empty((m, 4), q.dtype)
     if m > 1 and (flat_nt[1:] >= flat_nt[:-1]).all():
-        _PIECES[method](t, flat_nt, q, c_out, c_in, kind, out.reshape(-1))
+        _PIECES[method](t, flat_nt, q, c_out, c_in, out.reshape(-1))
     elif m:
         seg = np.empty((k - 1, NSEG), q.dtype)
-        _segments(q, c_out, c_in, kind, seg)
+        _SEGMENTS[method](q, c_out, c_in, seg)
         _SPLINE[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
 
