@@ -990,15 +990,24 @@ def squad_controls(keys):
     >>> np.allclose(qa.interpolation.squad_controls(keys), keys)  # one great circle
     True
     """
-    from . import algebra as A
-
     q = _keys(keys)
     s = q.copy()
     if q.shape[0] > 2:
-        inv = A.conjugate(q[1:-1])
-        t = A.log(A.multiply(inv, q[2:])) + A.log(A.multiply(inv, q[:-2]))
-        s[1:-1] = A.multiply(q[1:-1], A.exp(-0.25 * t))
+        _squad_inner(np.ascontiguousarray(q), s)
     return s
+
+
+@rowloop
+def _squad_inner(q, s):
+    """Rows 1 … K−2 of :func:`squad_controls` (one kernel: no temporaries)."""
+    quarter = like(q, -0.25)
+    for n in prange(1, q.shape[0] - 1):
+        qn = E.load4(q, n)
+        inv = E.qconj(qn)
+        a = E.qlog(E.qmul(inv, E.load4(q, n + 1)))
+        b = E.qlog(E.qmul(inv, E.load4(q, n - 1)))
+        E.store4(s, n, E.qmul(qn, E.qexp(((a[0] + b[0]) * quarter, (a[1] + b[1]) * quarter,
+                                           (a[2] + b[2]) * quarter, (a[3] + b[3]) * quarter))))
 
 
 def squad(q0, s0, s1, q1, t, out=None):
