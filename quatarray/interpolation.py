@@ -24,7 +24,8 @@ from . import _elements as E
 from numba import types
 from numba.extending import overload
 
-from ._jit import INLINE_OPTIONS, element, ir_inline, flat_load, flat_store, inline, kernel, like, prange, rowloop, specialise
+from ._jit import (INLINE_OPTIONS, element, flat_load, flat_store, inline, ir_inline, kernel, like, prange, rowloop,
+                   specialise)
 from ._trig import half_arc, sincos
 from ._validate import as_float, as_times, check_core, elementwise, scan, shape_error
 

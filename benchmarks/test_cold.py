@@ -1,0 +1,68 @@
+"""First calls from an empty numba cache: what a new user waits for.
+
+Each public function (every entry of the warm-up table, :data:`quatarray._warmup.TABLE`,
+called once on contiguous inputs) and float type runs in a fresh process whose ``NUMBA_CACHE_DIR`` is a new empty
+folder; the time of its first call (compiling every kernel it needs) is measured
+there, as wall time and as the process's CPU time (which the other load of a shared
+machine disturbs less). ``quatarray demo`` is timed the same way, as a whole command.
+
+Run ``python -m pytest benchmarks/test_cold.py -s`` for the table; the targets
+(issue 13) are asserted with a margin for a shared machine: a public function's
+first call within 3 s (the Bézier spline within 4 s) of CPU time, the demo within
+20 s of wall time.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+
+from quatarray import _warmup
+
+_FIRST_CALL = """
+import json, sys, time, warnings
+t0, c0 = time.perf_counter(), time.process_time()
+import quatarray as qa
+from quatarray import _jit, _warmup
+s = _warmup._samples(sys.argv[2])
+_jit.PARALLEL_MIN_ROWS = sys.maxsize  # the serial loops, as a first small call uses
+# one plain call (contiguous inputs, a new result), not every layout the warm-up covers
+_warmup._each = lambda f, *args, out=False, **kw: f(*args, **kw)
+_warmup._interp = lambda f, s, *extra, **kw: f(s.p, s.q, *extra, s.t, **kw)
+warnings.simplefilter("ignore")
+t1, c1 = time.perf_counter(), time.process_time()
+_warmup.TABLE[sys.argv[1]](qa, s)
+print(json.dumps([time.perf_counter() - t1, time.process_time() - c1, time.perf_counter() - t0]))
+"""
+
+# the targets of issue 13, in seconds of the first call's CPU time
+TARGET = {"spline[bezier]": 4.0, "spline[bezier, unsorted]": 4.0}
+MARGIN = 1.5  # a shared machine: other processes' load slows compiling too
+
+
+def _cold(*argv):
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        r = subprocess.run([sys.executable, *argv], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return r
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("name", sorted(_warmup.TABLE))
+def test_first_call(name, dtype):
+    wall, cpu, process = json.loads(_cold("-c", _FIRST_CALL, name, dtype).stdout.splitlines()[-1])
+    print(f"\n{name:24s} {dtype}: first call {wall:5.2f} s wall, {cpu:5.2f} s CPU ({process:5.2f} s with the import)")
+    assert cpu <= MARGIN * TARGET.get(name, 3.0)
+
+
+def test_demo_from_an_empty_cache(tmp_path):
+    t0 = time.perf_counter()
+    _cold("-m", "quatarray", "demo", "--out", str(tmp_path / "demo"))
+    wall = time.perf_counter() - t0
+    print(f"\nquatarray demo from an empty cache: {wall:.1f} s wall")
+    assert wall <= MARGIN * 20.0
