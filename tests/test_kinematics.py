@@ -168,3 +168,47 @@ def test_euroc_groundtruth_round_trip(data_dir):
     w = np.r_[step_rates(q, t_ns), [[0.0, 0, 0]]]
     back = qa.integrate_angular_velocity(w, t_ns, q0=q[0], hold="start")
     assert qa.distance(back, q).max() < 1e-9
+
+
+# ---------------------------------------------------------------------------
+# quatarray.dask: a blocked scan equal to the in-memory result
+
+
+@pytest.mark.parametrize("frame", ["space", "body"])
+@pytest.mark.parametrize("hold", ["mean", "start"])
+@pytest.mark.parametrize("chunks", [1, 7, 64, 1000])
+def test_dask_equals_in_memory(rng, frame, hold, chunks):
+    da = pytest.importorskip("dask.array")
+    import quatarray.dask as qd
+
+    n = 500
+    t = uneven_times(rng, n)
+    w = rng.standard_normal((n, 3))
+    q0 = qa.random(rng=rng)
+    expect = qa.integrate_angular_velocity(w, t, q0=q0, frame=frame, hold=hold)
+    lazy = qd.integrate_angular_velocity(da.from_array(w, chunks=(chunks, 3)), da.from_array(t, chunks=13),
+                                         q0=q0, frame=frame, hold=hold)
+    assert lazy.chunks[0] == da.from_array(w, chunks=(chunks, 3)).chunks[0]
+    assert np.abs(lazy.compute(scheduler="sync") - expect).max() < 1e-13
+
+
+def test_dask_nanoseconds_float32_and_errors(rng):
+    da = pytest.importorskip("dask.array")
+    import quatarray.dask as qd
+
+    n = 300
+    t_ns = np.int64(1_403_636_579_758_555_392) + np.r_[0, np.cumsum(rng.integers(4_000_000, 6_000_000, n - 1))]
+    w = rng.standard_normal((n, 3)) * 1e-9
+    got = qd.integrate_angular_velocity(da.from_array(w, chunks=(40, 3)), t_ns).compute(scheduler="sync")
+    assert np.abs(got - qa.integrate_angular_velocity(w, t_ns)).max() < 1e-13
+    w32 = (w * 1e9).astype(np.float32)
+    t = (t_ns - t_ns[0]) * 1e-9
+    got = qd.integrate_angular_velocity(da.from_array(w32, chunks=(40, 3)), t).compute(scheduler="sync")
+    assert got.dtype == np.float32
+    assert np.abs(got - qa.integrate_angular_velocity(w32, t)).max() < 1e-6
+    bad = t.copy()
+    bad[123] = bad[122]
+    with pytest.raises(ValueError, match=r"times\[123\] = .* after times\[122\]"):
+        qd.integrate_angular_velocity(da.from_array(w, chunks=(40, 3)), bad).compute(scheduler="sync")
+    with pytest.raises(ValueError, match="`hold`"):
+        qd.integrate_angular_velocity(da.from_array(w, chunks=(40, 3)), t, hold="end")
