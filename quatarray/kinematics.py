@@ -8,27 +8,34 @@ velocity is integrated without error (to rounding), whatever the step.
 The integration is a scan (each orientation is the one before times the
 step's exponential), so in one thread it is bounded by the latency of the
 dependent chain of quaternion products, about four multiply-adds deep per
-step; the step exponentials themselves (a square root, a sincos) do not
-depend on the chain and overlap with it. Long streams are cut into one block
-per thread: each block's local products run in parallel, a short serial pass
-carries the block ends, and a parallel pass multiplies the carried
-orientation into every later block (:func:`_scan`).
+step (about 3 ns a step here). The step exponentials (a square root, a
+sincos) are a separate vectorised pass before it (about 5 ns a step).
+Streams of at least ``QUATARRAY_PARALLEL_MIN_ROWS`` samples are cut into one
+block per numba thread, run in Python threads (the kernels release the GIL;
+no numba parallel loop, whose compilation would cost seconds of a cold first
+call): each block's exponentials and its local products from the identity
+(block 0 from q0), then the block ends are carried in turn and multiplied
+into the later blocks by :func:`quatarray.multiply` (multi-threaded):
+see :func:`_integrate`.
 """
+
+import threading
 
 import numba
 import numpy as np
 
 from . import _elements as E
 from . import _jit
-from ._jit import like, prange, rowloop, specialise
+from ._jit import kernel, like, prange, specialise
 from ._trig import sincos_limit
 from ._validate import as_float, as_times, check_core, result_dtype
+from .algebra import multiply as qa_multiply
 from .conversions import half_sinc, rotvec_quat
 from .interpolation import _check_times, _first_not_increasing, _not_increasing
 
 FRAMES = ("space", "body")
 HOLDS = ("mean", "start")
-TILE = 4096  # steps per task of the parallel fix-up; block lengths are multiples of it
+TILE = 4096  # the fewest steps a block of the threaded scan takes
 
 # --------------------------------------------------------------------------
 # kernels (float64 inside, whatever the dtype of the stream: the chain of
@@ -57,11 +64,10 @@ def _exponentials(omega, h, out):
     return far
 
 
-_EXPONENTIALS = {m: rowloop(rows=2)(specialise(_exponentials, "_mean" if m else "_start", MEAN=m))
-                 for m in (True, False)}
+_EXPONENTIALS = {m: kernel(specialise(_exponentials, "_mean" if m else "_start", MEAN=m)) for m in (True, False)}
 
 
-@rowloop(rows=3, parallel=False)
+@kernel
 def _exponentials_far(omega, h, mean, out):
     for k in range(out.shape[0] - 1):
         a = E.load3(omega, k)
@@ -77,48 +83,55 @@ def _exponentials_far(omega, h, mean, out):
             E.store4(out, k + 1, (np.cos(half), s * v[0], s * v[1], s * v[2]))
 
 
-@rowloop
-def _scan(out, q0, body, unit, nblocks, ends):
-    """out[0] = q0, out[k+1] = e_k ⊗ out[k] (space) or out[k] ⊗ e_k (body), in place:
-    out[k+1] holds e_k on entry. Carried in float64; with `unit` (float32 rows) each
-    e_k is normalised in float64 first, so the norm does not drift by the float32
-    rounding of the steps.
+@kernel
+def _scan(out, q0, body, unit):
+    """In place, out[k] = e_k ⊗ out[k−1] (space) or out[k−1] ⊗ e_k (body) from
+    out[−1] = q0: out[k] holds the step exponential e_k on entry. Carried in
+    float64 (``np.float64``: numba's ``float()`` keeps float32); with `unit`
+    (float32 rows) each e_k is normalised in float64 first, so the norm does not
+    drift by the float32 rounding of the steps."""
+    acc = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
+    for k in range(out.shape[0]):
+        f = E.load4(out, k)
+        e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+        if unit:
+            e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
+        acc = E.qmul(acc, e) if body else E.qmul(e, acc)
+        E.store4(out, k, acc)
 
-    The N − 1 steps are cut into `nblocks` blocks of a multiple of TILE steps.
-    Each block's products run from the identity (block 0 from q0) and its last
-    one goes to ``ends``; the block ends are then made global serially (a few
-    products), and each later block is multiplied by the orientation where it
-    starts, TILE rows a task.
-    """
-    n = out.shape[0]
-    steps = n - 1
-    tiles = (steps + TILE * nblocks - 1) // (TILE * nblocks)  # per block
-    size = tiles * TILE
-    start = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
-    E.store4(out, 0, start)
-    for b in prange(nblocks):
-        acc = start if b == 0 else (1.0, 0.0, 0.0, 0.0)
-        for k in range(b * size, min((b + 1) * size, steps)):
-            f = E.load4(out, k + 1)
-            e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
-            if unit:
-                e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
-            acc = E.qmul(acc, e) if body else E.qmul(e, acc)
-            E.store4(out, k + 1, acc)
-        E.store4(ends, b, acc)
-    # block ends made global in turn: ends[b] = the orientation where block b + 1 starts
-    for b in range(1, nblocks - 1):
-        local = E.load4(ends, b)
-        prev = E.load4(ends, b - 1)
-        E.store4(ends, b, E.qmul(prev, local) if body else E.qmul(local, prev))
-    for t in prange((nblocks - 1) * tiles):
-        b = 1 + t // tiles
-        c = E.load4(ends, b - 1)
-        lo = b * size + (t % tiles) * TILE
-        for k in range(lo, min(lo + TILE, (b + 1) * size, steps)):
-            f = E.load4(out, k + 1)
-            g = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
-            E.store4(out, k + 1, E.qmul(c, g) if body else E.qmul(g, c))
+
+def _block(w, h, out, q0, mean, body):
+    """Rows [1, n) of `out` for steps [0, n − 1) of the block: exponentials, then the scan."""
+    if _EXPONENTIALS[mean](w, h, out):
+        _exponentials_far(w, h, mean, out)
+    _scan(out[1:], q0, body, out.dtype == np.float32)
+
+
+def _integrate(w, h, out, q0, mean, body):
+    """The whole stream into `out` (row 0 = q0): one block, or, for long streams, one
+    block per thread (Python threads: the kernels release the GIL), each from the
+    identity but the first; then the block ends are carried and multiplied into the
+    later blocks (:func:`quatarray.multiply`, itself multi-threaded)."""
+    out[0] = q0
+    steps = out.shape[0] - 1
+    nb = _blocks(out.shape[0])
+    size = -(-steps // nb)
+    cuts = [min(b * size, steps) for b in range(nb + 1)]
+    one = np.array([1.0, 0.0, 0.0, 0.0])
+    jobs = [(w[a:c + 1], h[a:c], out[a:c + 1], q0 if b == 0 else one, mean, body)
+            for b, (a, c) in enumerate(zip(cuts[:-1], cuts[1:]))]
+    threads = [threading.Thread(target=_block, args=job) for job in jobs[1:]]
+    for th in threads:
+        th.start()
+    _block(*jobs[0])
+    for th in threads:
+        th.join()
+    carry = out[cuts[1]].astype(np.float64)  # where block 1 starts
+    for a, c in zip(cuts[1:-1], cuts[2:]):
+        local = out[a + 1 : c + 1]
+        cq = carry.astype(out.dtype)
+        qa_multiply(cq, local, out=local) if body else qa_multiply(local, cq, out=local)
+        carry = out[c].astype(np.float64)
 
 
 # --------------------------------------------------------------------------
@@ -146,7 +159,7 @@ def _check_options(frame, hold):
 
 def _blocks(n):
     """Blocks of the scan: one per thread for long streams, else one."""
-    if n < _jit.PARALLEL_MIN_ROWS:
+    if n < max(_jit.PARALLEL_MIN_ROWS, 2 * TILE):
         return 1
     return max(1, min(numba.get_num_threads(), (n - 1) // TILE))
 
@@ -227,10 +240,5 @@ def integrate_angular_velocity(omega, times, q0=None, frame="space", hold="mean"
     out = np.empty((n, 4), dtype)
     if n == 0:
         return out
-    nblocks = _blocks(n)
-    w = w.astype(dtype, copy=False)
-    mean = hold == "mean"
-    if _EXPONENTIALS[mean](w, h, out):
-        _exponentials_far(w, h, mean, out)
-    _scan(out, start, frame == "body", dtype == np.float32, nblocks, np.empty((nblocks, 4)))
+    _integrate(w.astype(dtype, copy=False), h, out, start, hold == "mean", frame == "body")
     return out
