@@ -8,8 +8,9 @@ velocity is integrated without error (to rounding), whatever the step.
 The integration is a scan (each orientation is the one before times the
 step's exponential), so in one thread it is bounded by the latency of the
 dependent chain of quaternion products, about four multiply-adds deep per
-step (about 3 ns a step here). The step exponentials (a square root, a
-sincos) are a separate vectorised pass before it (about 5 ns a step).
+step (about 5 ns a step measured on the 2-core CI machine). The step
+exponentials (a square root, a sincos) are a separate vectorised pass
+before it (about 10 ns a step there).
 Streams of at least ``QUATARRAY_PARALLEL_MIN_ROWS`` samples are cut into one
 block per numba thread, run in Python threads (the kernels release the GIL;
 no numba parallel loop, whose compilation would cost seconds of a cold first
