@@ -30,6 +30,7 @@ _MODULES = {
         "squad", "unflip", "spline", "angular_velocity",
     ],
     "transforms": ["VQS", "VQM", "interpolate"],
+    "kinematics": ["integrate_angular_velocity"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}

@@ -211,6 +211,8 @@ TABLE = {
     "spline[squad]": _spline("squad", "new_sorted"),
     "spline[squad, unsorted]": _spline("squad", "new_unsorted"),
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
+    "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
+        f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),
     # transforms
     "VQS": lambda qa, s: _transform(_vqs(qa, s), _vqm(qa, s), s),
     "VQM": lambda qa, s: _transform(_vqm(qa, s), _vqs(qa, s), s),

@@ -438,6 +438,47 @@ def cmd_unflip(args):
 
 
 # --------------------------------------------------------------------------
+# integrate
+
+
+def cmd_integrate(args):
+    """The orientation stream of an angular-velocity stream, chunk by chunk: each chunk
+    continues from the last row of the one before (its time, rate and orientation)."""
+    import quatarray as qa
+
+    reader = _open(args, args.IN, kind="rate")
+    if not reader.has_time:
+        raise UsageError(f"{args.IN}: has no time column; integrate needs the sample times (column t)")
+    check_output(args.OUT, [args.IN], args.force)
+    clean = Cleaner(reader, args.on_invalid, ordered=True)
+    scale = np.pi / 180 if args.degrees else 1.0
+    with open_writer(args.OUT, QUAT_FIELDS, time=True) as w, _progress(args, reader.rows, "integrate") as bar:
+        last = None  # (time, rate, orientation) of the last row written
+        for ch in reader:
+            n = len(ch)
+            ch = clean(ch)
+            bar.update(n)
+            if not len(ch):
+                continue
+            # EuRoC's integer ns give exact steps (rad/ns against them); else seconds
+            t, rate = (ch.ns, ch.data * (scale * 1e-9)) if ch.ns is not None else (ch.t, ch.data * scale)
+            q0 = None
+            if last is not None:
+                t, rate, q0 = np.r_[last[0], t], np.r_[last[1][None], rate], last[2]
+            try:
+                q = qa.integrate_angular_velocity(rate, t, q0=q0, frame=args.frame, hold=args.hold)
+            except ValueError as exc:
+                raise _lib_error(args.IN, exc) from None
+            q = q if last is None else q[1:]
+            last = (t[-1], rate[-1], q[-1])
+            w.write(q, ch.t)
+        if w.rows == 0:
+            raise _no_rows(args.IN)
+    clean.report(sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------
 # paired verbs: rotate, compose
 
 
@@ -984,6 +1025,19 @@ def build_parser():
     s.add_argument("B")
     s.add_argument("OUT")
     s.set_defaults(func=cmd_compose)
+
+    s = sub.add_parser("integrate", parents=[io_opts], help="integrate an angular-velocity stream to orientations",
+                       description="IN: csv/parquet with columns t, wx wy wz (rad/s), or an EuRoC IMU file "
+                                   "(#timestamp [ns], w_RS_S_x [rad s^-1], ...). OUT: t, qw qx qy qz from the "
+                                   "identity; each step applies the exact exponential of its held rate.")
+    s.add_argument("IN")
+    s.add_argument("OUT")
+    s.add_argument("--frame", choices=("space", "body"), default="space",
+                   help="axes of the rates: the fixed frame (space, default) or the moving one (body, an IMU's)")
+    s.add_argument("--hold", choices=("mean", "start"), default="mean",
+                   help="rate held over a step: the mean of its two samples (default) or the first one")
+    s.add_argument("--degrees", action="store_true", help="rates in degrees per second")
+    s.set_defaults(func=cmd_integrate)
 
     s = sub.add_parser("bench", help="side-by-side throughput against scipy and friends")
     s.add_argument("--n", type=_rows, default=None, metavar="N", help="batch size")

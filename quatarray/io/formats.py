@@ -12,12 +12,14 @@ TIME_NAMES = ("t", "time", "timestamp")
 POS_NAMES = (("x", "y", "z"), ("tx", "ty", "tz"), ("px", "py", "pz"))
 QUAT_NAMES = (("qw", "qx", "qy", "qz"), ("w", "x", "y", "z"))
 VEC_NAMES = (("x", "y", "z"), ("vx", "vy", "vz"))
+RATE_NAMES = (("wx", "wy", "wz"),)  # angular velocity (``integrate``)
 
 TUM_NAMES = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"]
 KITTI_NAMES = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in range(4)]
 EUROC_TIME = "timestamp"
 EUROC_POS = ["p_RS_R_x", "p_RS_R_y", "p_RS_R_z"]
 EUROC_QUAT = ["q_RS_w", "q_RS_x", "q_RS_y", "q_RS_z"]
+EUROC_RATE = ["w_RS_S_x", "w_RS_S_y", "w_RS_S_z"]  # EuRoC IMU files (gyroscope, rad/s)
 
 
 def by_extension(path):

@@ -5,7 +5,8 @@ and describes its stream with a few attributes:
 
 ``name``      the path as the user wrote it (used in messages)
 ``format``    the format read
-``kind``      ``"quat"`` (a rotation stream, rows are (w, x, y, z)) or ``"vector"``
+``kind``      ``"quat"`` (a rotation stream, rows are (w, x, y, z)), ``"vector"`` or
+              ``"rate"`` (angular velocity: columns ``wx wy wz``, or an EuRoC IMU file)
 ``columns``   the source columns used, in the file's own names
 ``layout``    how the quaternion columns were laid out in the file
 ``has_time``, ``has_pos``
@@ -47,8 +48,9 @@ def open_stream(path, fmt="auto", kind="quat", layout=None, joint=None, chunk=DE
     path : str or path-like
     fmt : {"auto", "npy", "csv", "tum", "euroc", "parquet", "bvh", "kitti"}
         ``"auto"`` decides by extension and by the header.
-    kind : {"quat", "vector"}
-        A rotation stream or a stream of 3-vectors (``rotate``'s VECTORS).
+    kind : {"quat", "vector", "rate"}
+        A rotation stream, a stream of 3-vectors (``rotate``'s VECTORS) or of
+        angular velocities (``integrate``'s input).
     layout : {"wxyz", "xyzw"}, optional
         Order of quaternion columns in inputs without named columns
         (npy, headerless csv); default wxyz.
@@ -136,7 +138,7 @@ class Reader:
 
     @property
     def noun(self):
-        return "quaternion" if self.kind == "quat" else "vector"
+        return {"quat": "quaternion", "rate": "angular velocity"}.get(self.kind, "vector")
 
     def where(self, row):
         return f"{self.name}: row {row}"
@@ -339,10 +341,11 @@ def _find_roles(names, kind, name, lineno):
                 f"(need qw, qx, qy, qz; the header has {F.shown(', '.join(n.strip() for n in names))})"
             )
         return t, pos, q
-    v = next(([low[k] for k in c] for c in F.VEC_NAMES if all(k in low for k in c)), None)
+    cands = F.RATE_NAMES if kind == "rate" else F.VEC_NAMES
+    v = next(([low[k] for k in c] for c in cands if all(k in low for k in c)), None)
     if v is None:
-        missing = [k for k in F.VEC_NAMES[0] if k not in low]
-        raise DataError(f"{name}:{lineno}: missing column {', '.join(missing)} (need x, y, z)")
+        missing = [k for k in cands[0] if k not in low]
+        raise DataError(f"{name}:{lineno}: missing column {', '.join(missing)} (need {', '.join(cands[0])})")
     return t, None, v
 
 
@@ -507,21 +510,27 @@ class TextReader(Reader):
 
     def _euroc(self, head, layout):
         name = self.name
-        if self.kind != "quat":
+        if self.kind == "vector":
             raise DataError(f"{name}: a euroc file holds poses, not vectors")
         line = head[0].lstrip().lstrip("#")
         names = [F.unquoted(F.unquoted(n).split(" [")[0]) for n in line.split(",")]
-        missing = [c for c in [F.EUROC_TIME] + F.EUROC_POS + F.EUROC_QUAT if c not in names]
+        rate = self.kind == "rate"  # an IMU file: the gyroscope's w_RS_S_x ... columns
+        cols = [F.EUROC_TIME] + (F.EUROC_RATE if rate else F.EUROC_POS + F.EUROC_QUAT)
+        missing = [c for c in cols if c not in names]
         if missing:
-            raise DataError(f"{name}:1: missing column {', '.join(missing)} (EuRoC ground truth)")
+            what = "EuRoC IMU" if rate else "EuRoC ground truth"
+            raise DataError(f"{name}:1: missing column {', '.join(missing)} ({what})")
         self.format, self.delim, self.header, self.skip = "euroc", ",", True, 1
         self.squeeze, self.header_line = False, True
         self.names = names
         self.t, self.pos, self.q = F.EUROC_TIME, list(F.EUROC_POS), list(F.EUROC_QUAT)
+        if rate:
+            self.pos, self.q = None, list(F.EUROC_RATE)
         self.ns_time = True
         self.layout = "wxyz"
-        self.columns = [self.t] + self.pos + self.q
-        self._ignored(layout, "euroc files are read as q_RS_w q_RS_x q_RS_y q_RS_z")
+        self.columns = [self.t] + (self.pos or []) + self.q
+        if not rate:
+            self._ignored(layout, "euroc files are read as q_RS_w q_RS_x q_RS_y q_RS_z")
 
     @property
     def has_time(self):
@@ -639,6 +648,8 @@ class TextReader(Reader):
     def _chunk(self, batch, row0):
         get = lambda c: self._col(batch, c)  # noqa: E731
         t = get(self.t) if self.t else None
+        if self.ns_time and self.kind == "rate":  # integrate takes its steps in exact ns
+            return Chunk(np.column_stack([get(c) for c in self.q]), t, None, row0, ns=self._ns(batch))
         if self.matrix:
             m = np.column_stack([get(c) for c in self.names]).reshape(-1, 3, 4)
             pos = np.ascontiguousarray(m[:, :, 3])
@@ -647,6 +658,15 @@ class TextReader(Reader):
         pos = np.column_stack([get(c) for c in self.pos]) if self.pos else None
         data = np.column_stack([get(c) for c in self.q])
         return Chunk(data, t, pos, row0)
+
+    def _ns(self, batch):
+        """The integer nanoseconds of the time column (a null or bad field: 0, its row is
+        dropped or named by its nan seconds)."""
+        col = batch.column(batch.schema.names.index(self.t))
+        vals = col.to_numpy(zero_copy_only=False)
+        if vals.dtype.kind not in "iu":
+            vals = np.array([_int_or_none(s) or 0 for s in col.to_pylist()], dtype=np.int64)
+        return vals.astype(np.int64, copy=False)
 
     def _scan_for_error(self, exc):
         """pyarrow refused the file (its message `exc`): find and name the first bad line."""

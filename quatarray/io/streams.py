@@ -19,12 +19,15 @@ class Chunk:
         Positions.
     row0 : int
         Index of the first row in the file's data rows (for error messages).
+    ns : ndarray of int64, shape (n,), or None
+        The times as the file's integer nanoseconds (EuRoC IMU rates only), exact.
     """
 
     data: np.ndarray
     t: np.ndarray = None
     pos: np.ndarray = None
     row0: int = 0
+    ns: np.ndarray = None
 
     def __len__(self):
         return self.data.shape[0]
@@ -35,6 +38,7 @@ class Chunk:
             None if self.t is None else self.t[idx],
             None if self.pos is None else self.pos[idx],
             self.row0,
+            None if self.ns is None else self.ns[idx],
         )
 
     def slice(self, a, b):
@@ -43,6 +47,7 @@ class Chunk:
             None if self.t is None else self.t[a:b],
             None if self.pos is None else self.pos[a:b],
             self.row0 + a,
+            None if self.ns is None else self.ns[a:b],
         )
 
     def replace(self, **kw):
@@ -59,6 +64,7 @@ def concat(chunks):
         None if first.t is None else np.concatenate([c.t for c in chunks]),
         None if first.pos is None else np.concatenate([c.pos for c in chunks]),
         first.row0,
+        None if first.ns is None else np.concatenate([c.ns for c in chunks]),
     )
 
 
