@@ -1181,20 +1181,31 @@ def spline(times, keys, new_times, method="bezier"):
 def _unit_keys(parts, flip0=False):
     """The keys as :func:`spline` interpolates them: the rows of `parts` (float arrays
     of shape (k, 4), one after the other) normalised into one fresh array, the first
-    row negated if `flip0`, then unflipped in place. One pass per step and one
-    array: `parts` may be the pieces of a window of keys taken across blocks."""
-    from .algebra import normalize
-
+    row negated if `flip0`, then unflipped, in one pass into one array: `parts` may
+    be the pieces of a window of keys taken across blocks."""
     q = np.empty((sum(len(p) for p in parts), 4), parts[0].dtype)
     a = 0
     for p in parts:
-        normalize(p, out=q[a : a + len(p)])
+        _unit_unflip(p, q, a, flip0)
         a += len(p)
-    if flip0:
-        q[0] = -q[0]
-    q3 = q.reshape(len(q), 1, 4)
-    _unflip(q3, q3)  # row by row, each read before it is written
     return q
+
+
+@kernel
+def _unit_unflip(p, out, a, flip0):
+    """Rows a … a + len(p) − 1 of `out`: the rows of `p` normalised (:func:`quatarray.normalize`),
+    each negated when its dot product with the row before in `out` is negative (as
+    :func:`unflip`); the first row of `out` is negated instead when `flip0`."""
+    zero = like(out, 0.0)
+    for k in range(p.shape[0]):
+        i = a + k
+        r = E.qnormalize(E.load4(p, k))
+        if i == 0:
+            if flip0:
+                r = E.qneg(r)
+        elif E.qdot(r, E.load4(out, i - 1)) < zero:
+            r = E.qneg(r)
+        E.store4(out, i, r)
 
 
 def _spline_unit(t, nt, q, method):
