@@ -13,7 +13,7 @@ import numpy as np
 
 from numba.extending import overload
 
-from ._jit import CACHE, element, flat_load, flat_rows, flat_store, inline, like
+from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like
 from ._trig import atan2
 
 
@@ -112,24 +112,29 @@ def qdot(p, q):
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
 
 
-@element
+@inline
 def qscaled(q):
-    """(q / c, c), c the largest |component| of q (1 when that is 0, inf or nan).
+    """(a, c) with q = c·a exactly: a = q·2^(1-E), c = 2^(E-1), 2^E ≤ m < 2^(E+1)
+    for m the largest |component| of q (c = 1 when m is 0 or inf).
 
-    The components of q / c (q times 1/c: one division) are at most 1 in
-    magnitude and one of them is about ±1, so their squares neither overflow nor
-    underflow, whatever the scale of q: every function that squares components
-    works on q / c (the same rotation). Zero and inf quaternions pass through
-    unscaled, to give nan (or inf, or a zero norm) as before; nan ones, and those
-    whose largest component is subnormal (below 2.2e-308 in float64, 1.2e-38 in
-    float32: 1/c overflows), give nan.
+    The components of a are below 4 in magnitude and the largest is in [2, 4),
+    so their squares neither overflow nor underflow, whatever the scale of q:
+    every function that squares components works on a (the same rotation).
+    The scale is a power of two read from m's exponent bits
+    (:func:`quatarray._jit.exponent_scales`): exact, so results are those of
+    the unscaled formulas wherever those do not overflow, and cheap (no
+    division, branch-free: the row loops stay vectorised). Zero and inf
+    quaternions pass through unscaled, to give nan (or inf, or a zero norm) as
+    before; nan ones, and those whose largest component is subnormal (below
+    2.2e-308 in float64, 1.2e-38 in float32), give nan.
     """
     m = max(max(abs(q[0]), abs(q[1])), max(abs(q[2]), abs(q[3])))
-    r = like(m, 1.0) / m
-    ok = (r > like(m, 0.0)) & (r < like(m, np.inf))  # not for 0, inf, nan or subnormal m
-    keep = like(m, 1.0) if (m == like(m, 0.0)) | (m == like(m, np.inf)) else like(m, np.nan)
-    c = m if ok else keep
-    r = r if ok else keep
+    r, c = exponent_scales(m)
+    zero = like(m, 0.0)
+    keep = like(m, 1.0) if (m == zero) | (m == like(m, np.inf)) else like(m, np.nan)
+    normal = (c > zero) & (r > zero)  # not for 0, subnormal, inf or nan m
+    c = like(m, 0.5) * c if normal else keep
+    r = r if normal else keep
     return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), c
 
 
@@ -172,8 +177,8 @@ def qnormalize(q):
 def qinverse(q):
     """q* / |q|² for any non-zero scale of q (inf where 1/|q| overflows); zero gives nan."""
     a, c = qscaled(q)
-    n2 = qdot(a, a)
-    return (a[0] / n2 / c, -a[1] / n2 / c, -a[2] / n2 / c, -a[3] / n2 / c)
+    k = like(c, 1.0) / qdot(a, a) / c  # 1/|q|² = 1/(c²|a|²), a's factor 1/c left in k
+    return (a[0] * k, -a[1] * k, -a[2] * k, -a[3] * k)
 
 
 @element
