@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from numba import types
 from numba.extending import overload
 
 from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like
@@ -145,6 +146,32 @@ def qnorm(q):
     return c * np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
 
 
+# Squared norms for which the formulas on q itself (unscaled) are exact to
+# rounding: no square or product of components overflows or underflows to a
+# loss (|q| between about 5e-76 and 2e75 in float64, 1e-9 and 1e9 in float32).
+# Batched loops compute the plain formulas and `far_scale` of |q|²; the rare
+# rows outside (and zero, inf, nan ones) are redone on ``qscaled(q)`` in a
+# second pass, so the common case costs what it did before scaling existed.
+NEAR_64 = (2.0**-500, 2.0**500)
+NEAR_32 = (2.0**-60, 2.0**60)
+
+
+def far_scale(n2):
+    """``int32`` 1 when the squared norm `n2` is outside the range where the
+    unscaled formulas are exact (or is 0, inf, nan), else 0. (An int32, so a
+    ``max`` reduction of it keeps float32 loops vectorised.)"""
+    lo, hi = NEAR_32 if isinstance(n2, np.float32) else NEAR_64
+    return np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
+
+
+@overload(far_scale, jit_options={"cache": CACHE})
+def _far_scale(n2):
+    if isinstance(n2, types.Float):
+        ftype = np.float32 if n2.bitwidth == 32 else np.float64
+        lo, hi = (ftype(x) for x in (NEAR_32 if n2.bitwidth == 32 else NEAR_64))
+        return lambda n2: np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
+
+
 @element
 def qscale(q, s):
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
@@ -198,10 +225,16 @@ def qrotate(q, v):
     With u the vector part and t = u × v: v + (2/|q|²)(w t + u × t), on q
     scaled by its largest component (:func:`qscaled`), so any scale works.
     """
-    q = qscaled(q)[0]
+    a = qscaled(q)[0]
+    return qrotate_raw(a, v, qdot(a, a))
+
+
+@inline
+def qrotate_raw(q, v, n2):
+    """:func:`qrotate` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w = q[0]
     u = (q[1], q[2], q[3])
-    k = like(w, 2.0) / qdot(q, q)
+    k = like(w, 2.0) / n2
     t = cross(u, v)
     s = cross(u, t)
     return (
@@ -215,9 +248,15 @@ def qrotate(q, v):
 def qmatrix(q):
     """Row-major 3×3 rotation matrix of q/|q| (9-tuple), for any non-zero scale
     of q (:func:`qscaled`); zero q gives nan."""
-    q = qscaled(q)[0]
+    a = qscaled(q)[0]
+    return qmatrix_raw(a, qdot(a, a))
+
+
+@inline
+def qmatrix_raw(q, n2):
+    """:func:`qmatrix` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w, x, y, z = q
-    s = like(w, 2.0) / qdot(q, q)
+    s = like(w, 2.0) / n2
     one = like(w, 1.0)
     xx, yy, zz = s * x * x, s * y * y, s * z * z
     xy, xz, yz = s * x * y, s * x * z, s * y * z
@@ -267,14 +306,19 @@ def qlog(q):
     scale of q: log|q| = log c + log|q/c| (:func:`qscaled`) where c·|q/c|
     would leave the normal float range.
     """
-    q, c = qscaled(q)
-    un = vnorm((q[1], q[2], q[3]))
-    n = np.sqrt(qdot(q, q))
-    cn = c * n
-    if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
-        lw = np.log(cn)
+    n2 = qdot(q, q)
+    if far_scale(n2):
+        q, c = qscaled(q)
+        n = np.sqrt(qdot(q, q))
+        cn = c * n
+        if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
+            lw = np.log(cn)
+        else:
+            lw = np.log(c) + np.log(n)
     else:
-        lw = np.log(c) + np.log(n)
+        n = np.sqrt(n2)
+        lw = np.log(n)
+    un = vnorm((q[1], q[2], q[3]))
     zero = like(n, 0.0)
     if un == zero:
         if q[0] < zero:

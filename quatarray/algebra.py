@@ -30,22 +30,59 @@ def _conjugate(q, out):
         E.store4(out, i, E.qconj(E.load4(q, i)))
 
 
+# The loops over |q|-dependent formulas compute them on q as it is and note
+# (E.far_scale, a max reduction that keeps the loop vectorised) whether a row
+# lies outside the range where that is exact; only then a second, serial pass
+# redoes those rows on the scaled q (E.qscaled). Where `out` may be the input,
+# the first pass leaves such rows as they were, for the second to read.
+
+
 @rowloop
 def _inverse(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        E.store4(out, i, E.qinverse(E.load4(q, i)))
+        a = E.load4(q, i)
+        n2 = E.qdot(a, a)
+        f = E.far_scale(n2)
+        E.store4(out, i, a if f else (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2))
+        far = max(far, f)
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qinverse(a))
 
 
 @rowloop
 def _normalize(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        E.store4(out, i, E.qnormalize(E.load4(q, i)))
+        a = E.load4(q, i)
+        n2 = E.qdot(a, a)
+        f = E.far_scale(n2)
+        n = np.sqrt(n2)
+        E.store4(out, i, a if f else (a[0] / n, a[1] / n, a[2] / n, a[3] / n))
+        far = max(far, f)
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qnormalize(a))
 
 
 @rowloop
 def _norm(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        out[i] = E.qnorm(E.load4(q, i))
+        a = E.load4(q, i)
+        n2 = E.qdot(a, a)
+        out[i] = np.sqrt(n2)
+        far = max(far, E.far_scale(n2))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                out[i] = E.qnorm(a)
 
 
 @rowloop
@@ -85,16 +122,32 @@ def _canonical(q, out):
 
 @rowloop
 def _angle(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.qscaled(E.load4(q, i))[0])
+        a = E.load4(q, i)
+        out[i] = like(out, 2.0) * E.half_angle(a)
+        far = max(far, E.far_scale(E.qdot(a, a)))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                out[i] = like(out, 2.0) * E.half_angle(E.qscaled(a)[0])
 
 
 @rowloop
 def _distance(p, q, out):
+    # far: |p⁻¹q|² = |p|²|q|² outside the range (its product's squares could over- or underflow)
+    far = np.int32(0)
     for i in prange(p.shape[0]):
-        a = E.qscaled(E.load4(p, i))[0]
-        b = E.qscaled(E.load4(q, i))[0]
-        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(a), b))
+        d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
+        out[i] = like(out, 2.0) * E.half_angle(d)
+        far = max(far, E.far_scale(E.qdot(d, d)))
+    if far:
+        for i in range(p.shape[0]):
+            a, b = E.load4(p, i), E.load4(q, i)
+            d = E.qmul(E.qconj(a), b)
+            if E.far_scale(E.qdot(d, d)):
+                out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.qscaled(a)[0]), E.qscaled(b)[0]))
 
 
 @kernel

@@ -146,7 +146,12 @@ def shepperd(a):
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
-    q = E.qscaled(q)[0]
+    return qrotvec_raw(E.qscaled(q)[0])
+
+
+@inline
+def qrotvec_raw(q):
+    """:func:`qrotvec` on q as it is (no scaling: see :func:`_elements.far_scale`)."""
     w, x, y, z = q
     un = E.vnorm((x, y, z))
     aw = abs(w)
@@ -161,7 +166,12 @@ def qrotvec(q):
 def qaxis_angle(q):
     """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
     any scale of q (:func:`_elements.qscaled`)."""
-    q = E.qscaled(q)[0]
+    return qaxis_angle_raw(E.qscaled(q)[0])
+
+
+@inline
+def qaxis_angle_raw(q):
+    """:func:`qaxis_angle` on q as it is (no scaling: see :func:`_elements.far_scale`)."""
     w, x, y, z = q
     zero = like(w, 0.0)
     un = E.vnorm((x, y, z))
@@ -221,10 +231,25 @@ def right_matrix(q):
 # batched loops
 
 
+# The loops over |q|-dependent formulas compute them on q as it is and note
+# (E.far_scale, a max reduction that keeps the loop vectorised) whether a row
+# lies outside the range where that is exact; only then a second, serial pass
+# redoes those rows on the scaled q (E.qscaled).
+
+
 @rowloop
 def _as_matrix(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        store33(out, i, E.qmatrix(E.load4(q, i)))
+        a = E.load4(q, i)
+        n2 = E.qdot(a, a)
+        store33(out, i, E.qmatrix_raw(a, n2))
+        far = max(far, E.far_scale(n2))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                store33(out, i, E.qmatrix(a))
 
 
 @rowloop
@@ -267,19 +292,28 @@ def _from_matrix_valid(m, out):
 
 @rowloop
 def _as_rotvec(q, out):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        E.store3(out, i, qrotvec(E.load4(q, i)))
+        a = E.load4(q, i)
+        E.store3(out, i, qrotvec_raw(a))
+        far = max(far, E.far_scale(E.qdot(a, a)))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store3(out, i, qrotvec(a))
 
 
 @rowloop
 def _from_rotvec(r, out):
-    # Returns how many rows have half angles beyond the fast sincos range (or inf):
+    # Returns 1 when some rows have half angles beyond the fast sincos range (or inf):
     # _from_rotvec_far redoes those with libm, as quatarray.euler does.
-    far = 0
+    # (An int32 max, not a count: an int64 reduction kept the float32 loop from vectorising.)
+    far = np.int32(0)
     for i in prange(r.shape[0]):
         v = E.load3(r, i)
         E.store4(out, i, rotvec_quat(v))
-        far += abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0])
+        far = max(far, np.int32(1) if abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0]) else np.int32(0))
     return far
 
 
@@ -295,10 +329,20 @@ def _from_rotvec_far(r, out):
 
 @rowloop
 def _as_axis_angle(q, axis, ang):
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        u, a = qaxis_angle(E.load4(q, i))
+        a = E.load4(q, i)
+        u, t = qaxis_angle_raw(a)
         E.store3(axis, i, u)
-        ang[i] = a
+        ang[i] = t
+        far = max(far, E.far_scale(E.qdot(a, a)))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                u, t = qaxis_angle(a)
+                E.store3(axis, i, u)
+                ang[i] = t
 
 
 @rowloop

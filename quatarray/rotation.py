@@ -1,5 +1,7 @@
 """Rotating vectors by quaternions."""
 
+import numpy as np
+
 from . import _elements as E
 from ._jit import prange, rowloop
 from ._validate import as_float, elementwise
@@ -7,8 +9,22 @@ from ._validate import as_float, elementwise
 
 @rowloop
 def _rotate(q, v, out):
+    # On q as it is, then the rows of q far from unit scale again on the scaled
+    # q (E.far_scale); the first pass leaves those rows of `out` (which may be
+    # `v`) holding v.
+    far = np.int32(0)
     for i in prange(q.shape[0]):
-        E.store3(out, i, E.qrotate(E.load4(q, i), E.load3(v, i)))
+        a = E.load4(q, i)
+        x = E.load3(v, i)
+        n2 = E.qdot(a, a)
+        f = E.far_scale(n2)
+        E.store3(out, i, x if f else E.qrotate_raw(a, x, n2))
+        far = max(far, f)
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store3(out, i, E.qrotate(a, E.load3(v, i)))
 
 
 @rowloop

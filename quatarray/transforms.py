@@ -71,9 +71,25 @@ def _mat_inverse(m):
 
 @rowloop
 def _apply_vqs(v, q, s, p, out):
+    # On q as it is, then the rows of q far from unit scale (E.far_scale) again
+    # on the scaled q. `out` may be `p` or `v`: the first pass leaves such rows
+    # holding the input that `out` is, for the second pass to read.
+    far = np.int32(0)
+    keep_v = out.ctypes.data == v.ctypes.data
     for i in prange(p.shape[0]):
-        r = _scale3(E.load3(p, i), s[i])
-        E.store3(out, i, _add3(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
+        a = E.load4(q, i)
+        x = E.load3(p, i)
+        t = E.load3(v, i)
+        n2 = E.qdot(a, a)
+        f = E.far_scale(n2)
+        E.store3(out, i, (t if keep_v else x) if f else _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t))
+        far = max(far, f)
+    if far:
+        for i in range(p.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                r = _scale3(E.load3(p, i), s[i])
+                E.store3(out, i, _add3(E.qrotate(a, r), E.load3(v, i)))
 
 
 @rowloop
