@@ -172,6 +172,20 @@ def _far_scale(n2):
         return lambda n2: np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
+@inline
+def pick4(c, a, b):
+    """a if c else b for 4-tuples, as one select per component (both already
+    computed), which keeps row loops vectorisable where a tuple-valued ``if``
+    would not be."""
+    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2], a[3] if c else b[3])
+
+
+@inline
+def pick3(c, a, b):
+    """:func:`pick4` for 3-tuples."""
+    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2])
+
+
 @element
 def qscale(q, s):
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)

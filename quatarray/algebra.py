@@ -44,7 +44,7 @@ def _inverse(q, out):
         a = E.load4(q, i)
         n2 = E.qdot(a, a)
         f = E.far_scale(n2)
-        E.store4(out, i, a if f else (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2))
+        E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
         far = max(far, f)
     if far:
         for i in range(q.shape[0]):
@@ -61,7 +61,7 @@ def _normalize(q, out):
         n2 = E.qdot(a, a)
         f = E.far_scale(n2)
         n = np.sqrt(n2)
-        E.store4(out, i, a if f else (a[0] / n, a[1] / n, a[2] / n, a[3] / n))
+        E.store4(out, i, E.pick4(f, a, (a[0] / n, a[1] / n, a[2] / n, a[3] / n)))
         far = max(far, f)
     if far:
         for i in range(q.shape[0]):

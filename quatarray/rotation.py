@@ -18,7 +18,7 @@ def _rotate(q, v, out):
         x = E.load3(v, i)
         n2 = E.qdot(a, a)
         f = E.far_scale(n2)
-        E.store3(out, i, x if f else E.qrotate_raw(a, x, n2))
+        E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
         far = max(far, f)
     if far:
         for i in range(q.shape[0]):

@@ -82,7 +82,7 @@ def _apply_vqs(v, q, s, p, out):
         t = E.load3(v, i)
         n2 = E.qdot(a, a)
         f = E.far_scale(n2)
-        E.store3(out, i, (t if keep_v else x) if f else _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t))
+        E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
         far = max(far, f)
     if far:
         for i in range(p.shape[0]):
