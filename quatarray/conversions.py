@@ -26,6 +26,7 @@ from ._trig import half_arc, sincos, sincos_limit
 from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
 
 Q = (4,)
+FLAG_BLOCK = 1024  # rows per block of _from_rotvec's range flags
 V = (3,)
 M3 = (3, 3)
 M4 = (4, 4)
@@ -307,13 +308,29 @@ def _as_rotvec(q, out):
 @rowloop
 def _from_rotvec(r, out):
     # Returns 1 when some rows have half angles beyond the fast sincos range (or inf):
-    # _from_rotvec_far redoes those with libm, as quatarray.euler does.
-    # (An int32 max, not a count: an int64 reduction kept the float32 loop from vectorising.)
+    # _from_rotvec_far redoes those with libm, as quatarray.euler does. The flags go
+    # to a small array per block of rows and are reduced after each block: a
+    # reduction inside the sincos loop makes LLVM interleave it (two vectors at a
+    # time), which spills registers and cost 20 % (an int64 count also kept the
+    # float32 loop from vectorising).
+    n = r.shape[0]
     far = np.int32(0)
-    for i in prange(r.shape[0]):
-        v = E.load3(r, i)
-        E.store4(out, i, rotvec_quat(v))
-        far = max(far, np.int32(1) if abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0]) else np.int32(0))
+    for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
+        lo = b * FLAG_BLOCK
+        m = min(n - lo, FLAG_BLOCK)
+        flags = np.empty(FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            v = E.load3(r, i)
+            h = like(v[0], 0.5) * E.vnorm(v)  # ≥ 0 (or nan)
+            s, c = sincos(h)
+            k = half_sinc(h, s)
+            E.store4(out, i, (c, k * v[0], k * v[1], k * v[2]))  # rotvec_quat(v), with h at hand
+            flags[j] = np.int32(1) if h > sincos_limit(h) else np.int32(0)
+        f = np.int32(0)
+        for j in range(m):
+            f = max(f, flags[j])
+        far = max(far, f)
     return far
 
 
