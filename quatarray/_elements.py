@@ -164,6 +164,23 @@ def far_scale(n2):
     return np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
+FLAG_BLOCK = 1024  # rows per block of range flags (see flags_max)
+
+
+@inline
+def flags_max(flags, m):
+    """The largest of ``flags[:m]``. The batched loops store each row's
+    :func:`far_scale` flag in a small array per block of :data:`FLAG_BLOCK`
+    rows and reduce it after the block: a reduction inside the row loop makes
+    LLVM interleave it (several vectors at a time, wider loads and shuffles,
+    spills in the larger loops), so the loop would no longer be the one it was
+    without the flag."""
+    f = np.int32(0)
+    for j in range(m):
+        f = max(f, flags[j])
+    return f
+
+
 @overload(far_scale, jit_options={"cache": CACHE})
 def _far_scale(n2):
     if isinstance(n2, types.Float):
@@ -320,23 +337,30 @@ def qlog(q):
     scale of q: log|q| = log c + log|q/c| (:func:`qscaled`) where c·|q/c|
     would leave the normal float range.
     """
-    n2 = qdot(q, q)
-    if far_scale(n2):
-        q, c = qscaled(q)
-        n = np.sqrt(qdot(q, q))
-        cn = c * n
-        if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
-            lw = np.log(cn)
-        else:
-            lw = np.log(c) + np.log(n)
+    q, c = qscaled(q)
+    n = np.sqrt(qdot(q, q))
+    cn = c * n
+    if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
+        lw = np.log(cn)
     else:
-        n = np.sqrt(n2)
-        lw = np.log(n)
+        lw = np.log(c) + np.log(n)
+    return log_vector(q, lw)
+
+
+@element
+def qlog_raw(q):
+    """:func:`qlog` on q as it is (no scaling: see :func:`far_scale`)."""
+    return log_vector(q, np.log(np.sqrt(qdot(q, q))))
+
+
+@inline
+def log_vector(q, lw):
+    """(lw, θ u/|u|), θ = atan2(|u|, w): the logarithm of q given lw = log|q|."""
     un = vnorm((q[1], q[2], q[3]))
-    zero = like(n, 0.0)
+    zero = like(un, 0.0)
     if un == zero:
         if q[0] < zero:
-            return (lw, like(n, math.pi), zero, zero)
+            return (lw, like(un, math.pi), zero, zero)
         return (lw, zero, zero, zero)
     f = np.arctan2(un, q[0]) / un
     return (lw, f * q[1], f * q[2], f * q[3])

@@ -31,7 +31,7 @@ def _conjugate(q, out):
 
 
 # The loops over |q|-dependent formulas compute them on q as it is and note
-# (E.far_scale, a max reduction that keeps the loop vectorised) whether a row
+# (E.far_scale, flags per block of rows: E.flags_max) whether a row
 # lies outside the range where that is exact; only then a second, serial pass
 # redoes those rows on the scaled q (E.qscaled). Where `out` may be the input,
 # the first pass leaves such rows as they were, for the second to read.
@@ -39,13 +39,20 @@ def _conjugate(q, out):
 
 @rowloop
 def _inverse(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        n2 = E.qdot(a, a)
-        f = E.far_scale(n2)
-        E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
-        far = max(far, f)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -55,14 +62,21 @@ def _inverse(q, out):
 
 @rowloop
 def _normalize(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        n2 = E.qdot(a, a)
-        f = E.far_scale(n2)
-        n = np.sqrt(n2)
-        E.store4(out, i, E.pick4(f, a, (a[0] / n, a[1] / n, a[2] / n, a[3] / n)))
-        far = max(far, f)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            nn = np.sqrt(n2)
+            E.store4(out, i, E.pick4(f, a, (a[0] / nn, a[1] / nn, a[2] / nn, a[3] / nn)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -72,12 +86,19 @@ def _normalize(q, out):
 
 @rowloop
 def _norm(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        n2 = E.qdot(a, a)
-        out[i] = np.sqrt(n2)
-        far = max(far, E.far_scale(n2))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            out[i] = np.sqrt(n2)
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -99,8 +120,24 @@ def _exp(q, out):
 
 @rowloop
 def _log(q, out):
-    for i in prange(q.shape[0]):
-        E.store4(out, i, E.qlog(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            f = E.far_scale(E.qdot(a, a))
+            E.store4(out, i, E.pick4(f, a, E.qlog_raw(a)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qlog(a))
 
 
 @rowloop
@@ -122,11 +159,18 @@ def _canonical(q, out):
 
 @rowloop
 def _angle(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        out[i] = like(out, 2.0) * E.half_angle(a)
-        far = max(far, E.far_scale(E.qdot(a, a)))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            out[i] = like(out, 2.0) * E.half_angle(a)
+            flags[j] = E.far_scale(E.qdot(a, a))
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -137,11 +181,18 @@ def _angle(q, out):
 @rowloop
 def _distance(p, q, out):
     # far: |p⁻¹q|² = |p|²|q|² outside the range (its product's squares could over- or underflow)
+    n = p.shape[0]
     far = np.int32(0)
-    for i in prange(p.shape[0]):
-        d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
-        out[i] = like(out, 2.0) * E.half_angle(d)
-        far = max(far, E.far_scale(E.qdot(d, d)))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
+            out[i] = like(out, 2.0) * E.half_angle(d)
+            flags[j] = E.far_scale(E.qdot(d, d))
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(p.shape[0]):
             a, b = E.load4(p, i), E.load4(q, i)

@@ -26,7 +26,6 @@ from ._trig import half_arc, sincos, sincos_limit
 from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
 
 Q = (4,)
-FLAG_BLOCK = 1024  # rows per block of _from_rotvec's range flags
 V = (3,)
 M3 = (3, 3)
 M4 = (4, 4)
@@ -233,19 +232,26 @@ def right_matrix(q):
 
 
 # The loops over |q|-dependent formulas compute them on q as it is and note
-# (E.far_scale, a max reduction that keeps the loop vectorised) whether a row
+# (E.far_scale, flags per block of rows: E.flags_max) whether a row
 # lies outside the range where that is exact; only then a second, serial pass
 # redoes those rows on the scaled q (E.qscaled).
 
 
 @rowloop
 def _as_matrix(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        n2 = E.qdot(a, a)
-        store33(out, i, E.qmatrix_raw(a, n2))
-        far = max(far, E.far_scale(n2))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            store33(out, i, E.qmatrix_raw(a, n2))
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -293,11 +299,18 @@ def _from_matrix_valid(m, out):
 
 @rowloop
 def _as_rotvec(q, out):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        E.store3(out, i, qrotvec_raw(a))
-        far = max(far, E.far_scale(E.qdot(a, a)))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            E.store3(out, i, qrotvec_raw(a))
+            flags[j] = E.far_scale(E.qdot(a, a))
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
@@ -309,16 +322,15 @@ def _as_rotvec(q, out):
 def _from_rotvec(r, out):
     # Returns 1 when some rows have half angles beyond the fast sincos range (or inf):
     # _from_rotvec_far redoes those with libm, as quatarray.euler does. The flags go
-    # to a small array per block of rows and are reduced after each block: a
-    # reduction inside the sincos loop makes LLVM interleave it (two vectors at a
-    # time), which spills registers and cost 20 % (an int64 count also kept the
-    # float32 loop from vectorising).
+    # to a small array per block of rows (E.flags_max): a reduction inside the
+    # sincos loop made LLVM interleave it, which spilled registers and cost 20 %
+    # (an int64 count also kept the float32 loop from vectorising).
     n = r.shape[0]
     far = np.int32(0)
-    for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
-        lo = b * FLAG_BLOCK
-        m = min(n - lo, FLAG_BLOCK)
-        flags = np.empty(FLAG_BLOCK, np.int32)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
         for j in range(m):
             i = lo + j
             v = E.load3(r, i)
@@ -327,10 +339,7 @@ def _from_rotvec(r, out):
             k = half_sinc(h, s)
             E.store4(out, i, (c, k * v[0], k * v[1], k * v[2]))  # rotvec_quat(v), with h at hand
             flags[j] = np.int32(1) if h > sincos_limit(h) else np.int32(0)
-        f = np.int32(0)
-        for j in range(m):
-            f = max(f, flags[j])
-        far = max(far, f)
+        far = max(far, E.flags_max(flags, m))
     return far
 
 
@@ -346,13 +355,20 @@ def _from_rotvec_far(r, out):
 
 @rowloop
 def _as_axis_angle(q, axis, ang):
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        u, t = qaxis_angle_raw(a)
-        E.store3(axis, i, u)
-        ang[i] = t
-        far = max(far, E.far_scale(E.qdot(a, a)))
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            u, t = qaxis_angle_raw(a)
+            E.store3(axis, i, u)
+            ang[i] = t
+            flags[j] = E.far_scale(E.qdot(a, a))
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)

@@ -12,14 +12,21 @@ def _rotate(q, v, out):
     # On q as it is, then the rows of q far from unit scale again on the scaled
     # q (E.far_scale); the first pass leaves those rows of `out` (which may be
     # `v`) holding v.
+    n = q.shape[0]
     far = np.int32(0)
-    for i in prange(q.shape[0]):
-        a = E.load4(q, i)
-        x = E.load3(v, i)
-        n2 = E.qdot(a, a)
-        f = E.far_scale(n2)
-        E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
-        far = max(far, f)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            x = E.load3(v, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
