@@ -168,7 +168,7 @@ def _angle(q, out):
         for j in range(m):
             i = lo + j
             a = E.load4(q, i)
-            out[i] = like(out, 2.0) * E.half_angle(a)
+            out[i] = like(out, 2.0) * E.half_angle_raw(a)
             flags[j] = E.far_scale(E.qdot(a, a))
         far = max(far, E.flags_max(flags, m))
     if far:
@@ -190,7 +190,7 @@ def _distance(p, q, out):
         for j in range(m):
             i = lo + j
             d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
-            out[i] = like(out, 2.0) * E.half_angle(d)
+            out[i] = like(out, 2.0) * E.half_angle_raw(d)
             flags[j] = E.far_scale(E.qdot(d, d))
         far = max(far, E.flags_max(flags, m))
     if far:
