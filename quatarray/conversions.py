@@ -146,44 +146,50 @@ def shepperd(a):
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
-    return qrotvec_raw(E.qscaled(q)[0])
+    return qrotvec_raw(E.qscaled(q)[0])[0]
 
 
 @inline
 def qrotvec_raw(q):
-    """:func:`qrotvec` on q as it is (no scaling: see :func:`_elements.far_scale`)."""
+    """(:func:`qrotvec` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`
+    (|q|² from the squares |u| is taken from, for the range flag)."""
     w, x, y, z = q
-    un = E.vnorm((x, y, z))
+    u2 = x * x + y * y + z * z
+    un = np.sqrt(u2)  # E.vnorm((x, y, z))
     aw = abs(w)
     two = like(w, 2.0)
     f = two * half_arc(un, aw) / un
     f = (two / aw) if un == like(w, 0.0) else f  # identity: 0·f = 0; zero q: 0·inf = nan
     f = -f if E.canonical_flip(q) else f
-    return (f * x, f * y, f * z)
+    return (f * x, f * y, f * z), u2 + w * w
 
 
 @inline
 def qaxis_angle(q):
     """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
     any scale of q (:func:`_elements.qscaled`)."""
-    return qaxis_angle_raw(E.qscaled(q)[0])
+    u, a, _ = qaxis_angle_raw(E.qscaled(q)[0])
+    return u, a
 
 
 @inline
 def qaxis_angle_raw(q):
-    """:func:`qaxis_angle` on q as it is (no scaling: see :func:`_elements.far_scale`)."""
+    """(:func:`qaxis_angle` on q as it is, |q|²): no scaling, see
+    :func:`_elements.far_scale` (|q|² from the squares |u| is taken from)."""
     w, x, y, z = q
     zero = like(w, 0.0)
-    un = E.vnorm((x, y, z))
+    u2 = x * x + y * y + z * z
+    un = np.sqrt(u2)  # E.vnorm((x, y, z))
     aw = abs(w)
+    n2 = u2 + w * w
     ang = like(w, 2.0) * half_arc(un, aw)
     if un == zero:
         if aw > zero:
-            return (like(w, 1.0), zero, zero), ang
+            return (like(w, 1.0), zero, zero), ang, n2
         nan = like(w, np.nan)
-        return (nan, nan, nan), nan
+        return (nan, nan, nan), nan, n2
     k = -un if E.canonical_flip(q) else un
-    return (x / k, y / k, z / k), ang
+    return (x / k, y / k, z / k), ang, n2
 
 
 @inline
@@ -307,14 +313,14 @@ def _as_rotvec(q, out):
         flags = np.empty(E.FLAG_BLOCK, np.int32)
         for j in range(m):
             i = lo + j
-            a = E.load4(q, i)
-            E.store3(out, i, qrotvec_raw(a))
-            flags[j] = E.far_scale(E.qdot(a, a))
+            rv, n2 = qrotvec_raw(E.load4(q, i))
+            E.store3(out, i, rv)
+            flags[j] = E.far_scale(n2)
         far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
+            if E.far_scale(qrotvec_raw(a)[1]):
                 E.store3(out, i, qrotvec(a))
 
 
@@ -363,16 +369,15 @@ def _as_axis_angle(q, axis, ang):
         flags = np.empty(E.FLAG_BLOCK, np.int32)
         for j in range(m):
             i = lo + j
-            a = E.load4(q, i)
-            u, t = qaxis_angle_raw(a)
+            u, t, n2 = qaxis_angle_raw(E.load4(q, i))
             E.store3(axis, i, u)
             ang[i] = t
-            flags[j] = E.far_scale(E.qdot(a, a))
+            flags[j] = E.far_scale(n2)
         far = max(far, E.flags_max(flags, m))
     if far:
         for i in range(q.shape[0]):
             a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
+            if E.far_scale(qaxis_angle_raw(a)[2]):
                 u, t = qaxis_angle(a)
                 E.store3(axis, i, u)
                 ang[i] = t
