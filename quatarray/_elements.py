@@ -164,7 +164,7 @@ def far_scale(n2):
     return np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
-FLAG_BLOCK = 8192  # rows per block of range flags (see flags_max): 32 kB, ~120 allocations per 10⁶ rows
+FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit
 
 
 @inline
