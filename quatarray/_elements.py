@@ -11,9 +11,10 @@ import math
 
 import numpy as np
 
+from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, element, flat_load, flat_rows, flat_store, inline, like
+from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like
 from ._trig import atan2
 
 
@@ -112,24 +113,29 @@ def qdot(p, q):
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
 
 
-@element
+@inline
 def qscaled(q):
-    """(q / c, c), c the largest |component| of q (1 when that is 0, inf or nan).
+    """(a, c) with q = c·a exactly: a = q·2^(1-E), c = 2^(E-1), 2^E ≤ m < 2^(E+1)
+    for m the largest |component| of q (c = 1 when m is 0 or inf).
 
-    The components of q / c (q times 1/c: one division) are at most 1 in
-    magnitude and one of them is about ±1, so their squares neither overflow nor
-    underflow, whatever the scale of q: every function that squares components
-    works on q / c (the same rotation). Zero and inf quaternions pass through
-    unscaled, to give nan (or inf, or a zero norm) as before; nan ones, and those
-    whose largest component is subnormal (below 2.2e-308 in float64, 1.2e-38 in
-    float32: 1/c overflows), give nan.
+    The components of a are below 4 in magnitude and the largest is in [2, 4),
+    so their squares neither overflow nor underflow, whatever the scale of q:
+    every function that squares components works on a (the same rotation).
+    The scale is a power of two read from m's exponent bits
+    (:func:`quatarray._jit.exponent_scales`): exact, so results are those of
+    the unscaled formulas wherever those do not overflow, and cheap (no
+    division, branch-free: the row loops stay vectorised). Zero and inf
+    quaternions pass through unscaled, to give nan (or inf, or a zero norm) as
+    before; nan ones, and those whose largest component is subnormal (below
+    2.2e-308 in float64, 1.2e-38 in float32), give nan.
     """
     m = max(max(abs(q[0]), abs(q[1])), max(abs(q[2]), abs(q[3])))
-    r = like(m, 1.0) / m
-    ok = (r > like(m, 0.0)) & (r < like(m, np.inf))  # not for 0, inf, nan or subnormal m
-    keep = like(m, 1.0) if (m == like(m, 0.0)) | (m == like(m, np.inf)) else like(m, np.nan)
-    c = m if ok else keep
-    r = r if ok else keep
+    r, c = exponent_scales(m)
+    zero = like(m, 0.0)
+    keep = like(m, 1.0) if (m == zero) | (m == like(m, np.inf)) else like(m, np.nan)
+    normal = (c > zero) & (r > zero)  # not for 0, subnormal, inf or nan m
+    c = like(m, 0.5) * c if normal else keep
+    r = r if normal else keep
     return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), c
 
 
@@ -138,6 +144,63 @@ def qnorm(q):
     """|q| for any scale of q (no overflow or underflow in the squares)."""
     a, c = qscaled(q)
     return c * np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+
+
+# Squared norms for which the formulas on q itself (unscaled) are exact to
+# rounding: no square or product of components overflows or underflows to a
+# loss (|q| between about 5e-76 and 2e75 in float64, 1e-9 and 1e9 in float32).
+# Batched loops compute the plain formulas and `far_scale` of |q|²; the rare
+# rows outside (and zero, inf, nan ones) are redone on ``qscaled(q)`` in a
+# second pass, so the common case costs what it did before scaling existed.
+NEAR_64 = (2.0**-500, 2.0**500)
+NEAR_32 = (2.0**-60, 2.0**60)
+
+
+def far_scale(n2):
+    """``int32`` 1 when the squared norm `n2` is outside the range where the
+    unscaled formulas are exact (or is 0, inf, nan), else 0. (An int32, so a
+    ``max`` reduction of it keeps float32 loops vectorised.)"""
+    lo, hi = NEAR_32 if isinstance(n2, np.float32) else NEAR_64
+    return np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
+
+
+FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit
+
+
+@inline
+def flags_max(flags, m):
+    """The largest of ``flags[:m]``. The batched loops store each row's
+    :func:`far_scale` flag in a small array per block of :data:`FLAG_BLOCK`
+    rows and reduce it after the block: a reduction inside the row loop makes
+    LLVM interleave it (several vectors at a time, wider loads and shuffles,
+    spills in the larger loops), so the loop would no longer be the one it was
+    without the flag."""
+    f = np.int32(0)
+    for j in range(m):
+        f = max(f, flags[j])
+    return f
+
+
+@overload(far_scale, jit_options={"cache": CACHE})
+def _far_scale(n2):
+    if isinstance(n2, types.Float):
+        ftype = np.float32 if n2.bitwidth == 32 else np.float64
+        lo, hi = (ftype(x) for x in (NEAR_32 if n2.bitwidth == 32 else NEAR_64))
+        return lambda n2: np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
+
+
+@inline
+def pick4(c, a, b):
+    """a if c else b for 4-tuples, as one select per component (both already
+    computed), which keeps row loops vectorisable where a tuple-valued ``if``
+    would not be."""
+    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2], a[3] if c else b[3])
+
+
+@inline
+def pick3(c, a, b):
+    """:func:`pick4` for 3-tuples."""
+    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2])
 
 
 @element
@@ -172,8 +235,8 @@ def qnormalize(q):
 def qinverse(q):
     """q* / |q|² for any non-zero scale of q (inf where 1/|q| overflows); zero gives nan."""
     a, c = qscaled(q)
-    n2 = qdot(a, a)
-    return (a[0] / n2 / c, -a[1] / n2 / c, -a[2] / n2 / c, -a[3] / n2 / c)
+    k = like(c, 1.0) / qdot(a, a) / c  # 1/|q|² = 1/(c²|a|²), a's factor 1/c left in k
+    return (a[0] * k, -a[1] * k, -a[2] * k, -a[3] * k)
 
 
 @element
@@ -193,10 +256,16 @@ def qrotate(q, v):
     With u the vector part and t = u × v: v + (2/|q|²)(w t + u × t), on q
     scaled by its largest component (:func:`qscaled`), so any scale works.
     """
-    q = qscaled(q)[0]
+    a = qscaled(q)[0]
+    return qrotate_raw(a, v, qdot(a, a))
+
+
+@inline
+def qrotate_raw(q, v, n2):
+    """:func:`qrotate` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w = q[0]
     u = (q[1], q[2], q[3])
-    k = like(w, 2.0) / qdot(q, q)
+    k = like(w, 2.0) / n2
     t = cross(u, v)
     s = cross(u, t)
     return (
@@ -210,9 +279,15 @@ def qrotate(q, v):
 def qmatrix(q):
     """Row-major 3×3 rotation matrix of q/|q| (9-tuple), for any non-zero scale
     of q (:func:`qscaled`); zero q gives nan."""
-    q = qscaled(q)[0]
+    a = qscaled(q)[0]
+    return qmatrix_raw(a, qdot(a, a))
+
+
+@inline
+def qmatrix_raw(q, n2):
+    """:func:`qmatrix` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w, x, y, z = q
-    s = like(w, 2.0) / qdot(q, q)
+    s = like(w, 2.0) / n2
     one = like(w, 1.0)
     xx, yy, zz = s * x * x, s * y * y, s * z * z
     xy, xz, yz = s * x * y, s * x * z, s * y * z
@@ -234,6 +309,14 @@ def half_angle(q):
     aw = abs(q[0])
     h = atan2(un, aw)
     return like(aw, np.nan) if un + aw == like(aw, 0.0) else h
+
+
+@inline
+def half_angle_raw(q):
+    """:func:`half_angle` without the zero-quaternion select (0 for it): for the
+    first pass of the batched loops, where a zero q is a :func:`far_scale` row
+    that the second pass redoes."""
+    return atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
 
 
 @element
@@ -263,17 +346,29 @@ def qlog(q):
     would leave the normal float range.
     """
     q, c = qscaled(q)
-    un = vnorm((q[1], q[2], q[3]))
     n = np.sqrt(qdot(q, q))
     cn = c * n
     if (cn > like(cn, 1e-37)) & (cn < like(cn, 1e37)):
         lw = np.log(cn)
     else:
         lw = np.log(c) + np.log(n)
-    zero = like(n, 0.0)
+    return log_vector(q, lw)
+
+
+@element
+def qlog_raw(q):
+    """:func:`qlog` on q as it is (no scaling: see :func:`far_scale`)."""
+    return log_vector(q, np.log(np.sqrt(qdot(q, q))))
+
+
+@inline
+def log_vector(q, lw):
+    """(lw, θ u/|u|), θ = atan2(|u|, w): the logarithm of q given lw = log|q|."""
+    un = vnorm((q[1], q[2], q[3]))
+    zero = like(un, 0.0)
     if un == zero:
         if q[0] < zero:
-            return (lw, like(n, math.pi), zero, zero)
+            return (lw, like(un, math.pi), zero, zero)
         return (lw, zero, zero, zero)
     f = np.arctan2(un, q[0]) / un
     return (lw, f * q[1], f * q[2], f * q[3])

@@ -39,6 +39,11 @@ Kernel layers
 ``like(x, c)``
     The constant ``c`` in ``x``'s float type, so float32 kernels stay
     float32 (a bare ``2.0`` would promote them to float64).
+``exponent_scales(m)``
+    ``(2^(1-E), 2^E)`` for a positive normal float m = 2^E·f (1 ≤ f < 2),
+    read from m's exponent bits: exact powers of two, no division, and
+    vectorisable (integer and/sub on the SIMD registers). Used to scale a
+    quaternion before squaring its components (``_elements.qscaled``).
 ``flat_rows(a)``, ``flat_load``, ``flat_store``
     Row access at a compile-time constant stride for C-contiguous ``(n, k)``
     arrays (used by ``_elements.load4`` & co.). numba addresses ``a[i, j]``
@@ -53,6 +58,7 @@ import types as _pytypes
 
 import numba
 import numpy as np
+from llvmlite import ir
 from numba import types
 from numba.core.registry import CPUDispatcher
 from numba.extending import intrinsic, overload
@@ -252,3 +258,46 @@ def flat_store(typingctx, a, j, v):
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+def exponent_scales(m):
+    """``(r, c) = (2^(1-E), 2^E)`` for a positive normal float ``m = 2^E·f``,
+    1 ≤ f < 2, in m's float type: r·m lies in [2, 4) and c·r = 2, both exactly
+    (powers of two, normal for every normal m). Compiled, they come from m's
+    exponent bits (no division, branch-free, vectorisable); for other m they
+    are meaningless (zero and subnormal m give c = 0 and r = inf, inf and nan
+    give c = inf and r = 0): callers select on ``(c > 0) & (r > 0)``."""
+    t = type(m) if isinstance(m, np.floating) else np.float64
+    info = np.finfo(t)
+    if not np.isfinite(m):
+        return t(0.0), t(np.inf)
+    if abs(m) < info.tiny:
+        return t(np.inf), t(0.0)
+    e = int(np.frexp(m)[1])  # m = f' 2^e, 0.5 ≤ f' < 1: E = e - 1
+    return np.ldexp(t(1.0), 2 - e), np.ldexp(t(1.0), e - 1)
+
+
+@intrinsic
+def _exponent_scales(typingctx, m):
+    if not isinstance(m, types.Float):
+        return None
+    sig = types.UniTuple(m, 2)(m)
+
+    def codegen(context, builder, sig, args):
+        bits = sig.args[0].bitwidth
+        mant = 52 if bits == 64 else 23
+        ity = ir.IntType(bits)
+        fty = context.get_value_type(sig.args[0])
+        mask = ir.Constant(ity, ((1 << (bits - 1 - mant)) - 1) << mant)  # the exponent field
+        e = builder.and_(builder.bitcast(args[0], ity), mask)
+        r = builder.bitcast(builder.sub(mask, e), fty)  # exponent field 2·bias + 1 - e: 2^(1-E)
+        c = builder.bitcast(e, fty)  # 2^E
+        return context.make_tuple(builder, sig.return_type, [r, c])
+
+    return sig, codegen
+
+
+@overload(exponent_scales, jit_options={"cache": CACHE})
+def _exponent_scales_ov(m):
+    if isinstance(m, types.Float):
+        return lambda m: _exponent_scales(m)

@@ -30,22 +30,80 @@ def _conjugate(q, out):
         E.store4(out, i, E.qconj(E.load4(q, i)))
 
 
+# The loops over |q|-dependent formulas compute them on q as it is and note
+# (E.far_scale, flags per block of rows: E.flags_max) whether a row
+# lies outside the range where that is exact; only then a second, serial pass
+# redoes those rows on the scaled q (E.qscaled). Where `out` may be the input,
+# the first pass leaves such rows as they were, for the second to read.
+
+
 @rowloop
 def _inverse(q, out):
-    for i in prange(q.shape[0]):
-        E.store4(out, i, E.qinverse(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qinverse(a))
 
 
 @rowloop
 def _normalize(q, out):
-    for i in prange(q.shape[0]):
-        E.store4(out, i, E.qnormalize(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            nn = np.sqrt(n2)
+            E.store4(out, i, E.pick4(f, a, (a[0] / nn, a[1] / nn, a[2] / nn, a[3] / nn)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qnormalize(a))
 
 
 @rowloop
 def _norm(q, out):
-    for i in prange(q.shape[0]):
-        out[i] = E.qnorm(E.load4(q, i))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            out[i] = np.sqrt(n2)
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                out[i] = E.qnorm(a)
 
 
 @rowloop
@@ -62,8 +120,24 @@ def _exp(q, out):
 
 @rowloop
 def _log(q, out):
-    for i in prange(q.shape[0]):
-        E.store4(out, i, E.qlog(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            f = E.far_scale(E.qdot(a, a))
+            E.store4(out, i, E.pick4(f, a, E.qlog_raw(a)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store4(out, i, E.qlog(a))
 
 
 @rowloop
@@ -85,16 +159,46 @@ def _canonical(q, out):
 
 @rowloop
 def _angle(q, out):
-    for i in prange(q.shape[0]):
-        out[i] = like(out, 2.0) * E.half_angle(E.qscaled(E.load4(q, i))[0])
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            out[i] = like(out, 2.0) * E.half_angle_raw(a)
+            flags[j] = E.far_scale(E.qdot(a, a))
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                out[i] = like(out, 2.0) * E.half_angle(E.qscaled(a)[0])
 
 
 @rowloop
 def _distance(p, q, out):
-    for i in prange(p.shape[0]):
-        a = E.qscaled(E.load4(p, i))[0]
-        b = E.qscaled(E.load4(q, i))[0]
-        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(a), b))
+    # far: |p⁻¹q|² = |p|²|q|² outside the range (its product's squares could over- or underflow)
+    n = p.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
+            out[i] = like(out, 2.0) * E.half_angle_raw(d)
+            flags[j] = E.far_scale(E.qdot(d, d))
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(p.shape[0]):
+            a, b = E.load4(p, i), E.load4(q, i)
+            d = E.qmul(E.qconj(a), b)
+            if E.far_scale(E.qdot(d, d)):
+                out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.qscaled(a)[0]), E.qscaled(b)[0]))
 
 
 @kernel

@@ -146,34 +146,50 @@ def shepperd(a):
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
-    q = E.qscaled(q)[0]
+    return qrotvec_raw(E.qscaled(q)[0])[0]
+
+
+@inline
+def qrotvec_raw(q):
+    """(:func:`qrotvec` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`
+    (|q|² from the squares |u| is taken from, for the range flag)."""
     w, x, y, z = q
-    un = E.vnorm((x, y, z))
+    u2 = x * x + y * y + z * z
+    un = np.sqrt(u2)  # E.vnorm((x, y, z))
     aw = abs(w)
     two = like(w, 2.0)
     f = two * half_arc(un, aw) / un
     f = (two / aw) if un == like(w, 0.0) else f  # identity: 0·f = 0; zero q: 0·inf = nan
     f = -f if E.canonical_flip(q) else f
-    return (f * x, f * y, f * z)
+    return (f * x, f * y, f * z), u2 + w * w
 
 
 @inline
 def qaxis_angle(q):
     """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
     any scale of q (:func:`_elements.qscaled`)."""
-    q = E.qscaled(q)[0]
+    u, a, _ = qaxis_angle_raw(E.qscaled(q)[0])
+    return u, a
+
+
+@inline
+def qaxis_angle_raw(q):
+    """(:func:`qaxis_angle` on q as it is, |q|²): no scaling, see
+    :func:`_elements.far_scale` (|q|² from the squares |u| is taken from)."""
     w, x, y, z = q
     zero = like(w, 0.0)
-    un = E.vnorm((x, y, z))
+    u2 = x * x + y * y + z * z
+    un = np.sqrt(u2)  # E.vnorm((x, y, z))
     aw = abs(w)
+    n2 = u2 + w * w
     ang = like(w, 2.0) * half_arc(un, aw)
     if un == zero:
         if aw > zero:
-            return (like(w, 1.0), zero, zero), ang
+            return (like(w, 1.0), zero, zero), ang, n2
         nan = like(w, np.nan)
-        return (nan, nan, nan), nan
+        return (nan, nan, nan), nan, n2
     k = -un if E.canonical_flip(q) else un
-    return (x / k, y / k, z / k), ang
+    return (x / k, y / k, z / k), ang, n2
 
 
 @inline
@@ -221,10 +237,32 @@ def right_matrix(q):
 # batched loops
 
 
+# The loops over |q|-dependent formulas compute them on q as it is and note
+# (E.far_scale, flags per block of rows: E.flags_max) whether a row
+# lies outside the range where that is exact; only then a second, serial pass
+# redoes those rows on the scaled q (E.qscaled).
+
+
 @rowloop
 def _as_matrix(q, out):
-    for i in prange(q.shape[0]):
-        store33(out, i, E.qmatrix(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
+            store33(out, i, E.qmatrix_raw(a, n2))
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                store33(out, i, E.qmatrix(a))
 
 
 @rowloop
@@ -267,19 +305,47 @@ def _from_matrix_valid(m, out):
 
 @rowloop
 def _as_rotvec(q, out):
-    for i in prange(q.shape[0]):
-        E.store3(out, i, qrotvec(E.load4(q, i)))
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            rv, n2 = qrotvec_raw(E.load4(q, i))
+            E.store3(out, i, rv)
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(qrotvec_raw(a)[1]):
+                E.store3(out, i, qrotvec(a))
 
 
 @rowloop
 def _from_rotvec(r, out):
-    # Returns how many rows have half angles beyond the fast sincos range (or inf):
-    # _from_rotvec_far redoes those with libm, as quatarray.euler does.
-    far = 0
-    for i in prange(r.shape[0]):
-        v = E.load3(r, i)
-        E.store4(out, i, rotvec_quat(v))
-        far += abs(like(v[0], 0.5) * E.vnorm(v)) > sincos_limit(v[0])
+    # Returns 1 when some rows have half angles beyond the fast sincos range (or inf):
+    # _from_rotvec_far redoes those with libm, as quatarray.euler does. The flags go
+    # to a small array per block of rows (E.flags_max): a reduction inside the
+    # sincos loop made LLVM interleave it, which spilled registers and cost 20 %
+    # (an int64 count also kept the float32 loop from vectorising).
+    n = r.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            v = E.load3(r, i)
+            h = like(v[0], 0.5) * E.vnorm(v)  # ≥ 0 (or nan)
+            s, c = sincos(h)
+            k = half_sinc(h, s)
+            E.store4(out, i, (c, k * v[0], k * v[1], k * v[2]))  # rotvec_quat(v), with h at hand
+            flags[j] = np.int32(1) if h > sincos_limit(h) else np.int32(0)
+        far = max(far, E.flags_max(flags, m))
     return far
 
 
@@ -295,10 +361,26 @@ def _from_rotvec_far(r, out):
 
 @rowloop
 def _as_axis_angle(q, axis, ang):
-    for i in prange(q.shape[0]):
-        u, a = qaxis_angle(E.load4(q, i))
-        E.store3(axis, i, u)
-        ang[i] = a
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            u, t, n2 = qaxis_angle_raw(E.load4(q, i))
+            E.store3(axis, i, u)
+            ang[i] = t
+            flags[j] = E.far_scale(n2)
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(qaxis_angle_raw(a)[2]):
+                u, t = qaxis_angle(a)
+                E.store3(axis, i, u)
+                ang[i] = t
 
 
 @rowloop

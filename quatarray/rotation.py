@@ -1,5 +1,7 @@
 """Rotating vectors by quaternions."""
 
+import numpy as np
+
 from . import _elements as E
 from ._jit import prange, rowloop
 from ._validate import as_float, elementwise
@@ -7,8 +9,29 @@ from ._validate import as_float, elementwise
 
 @rowloop
 def _rotate(q, v, out):
-    for i in prange(q.shape[0]):
-        E.store3(out, i, E.qrotate(E.load4(q, i), E.load3(v, i)))
+    # On q as it is, then the rows of q far from unit scale again on the scaled
+    # q (E.far_scale); the first pass leaves those rows of `out` (which may be
+    # `v`) holding v.
+    n = q.shape[0]
+    far = np.int32(0)
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            x = E.load3(v, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(q.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                E.store3(out, i, E.qrotate(a, E.load3(v, i)))
 
 
 @rowloop

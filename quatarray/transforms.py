@@ -71,9 +71,32 @@ def _mat_inverse(m):
 
 @rowloop
 def _apply_vqs(v, q, s, p, out):
-    for i in prange(p.shape[0]):
-        r = _scale3(E.load3(p, i), s[i])
-        E.store3(out, i, _add3(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
+    # On q as it is, then the rows of q far from unit scale (E.far_scale) again
+    # on the scaled q. `out` may be `p` or `v`: the first pass leaves such rows
+    # holding the input that `out` is, for the second pass to read.
+    n = p.shape[0]
+    far = np.int32(0)
+    keep_v = out.ctypes.data == v.ctypes.data
+    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
+        lo = b * E.FLAG_BLOCK
+        m = min(n - lo, E.FLAG_BLOCK)
+        flags = np.empty(E.FLAG_BLOCK, np.int32)
+        for j in range(m):
+            i = lo + j
+            a = E.load4(q, i)
+            x = E.load3(p, i)
+            t = E.load3(v, i)
+            n2 = E.qdot(a, a)
+            f = E.far_scale(n2)
+            E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
+            flags[j] = f
+        far = max(far, E.flags_max(flags, m))
+    if far:
+        for i in range(p.shape[0]):
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                r = _scale3(E.load3(p, i), s[i])
+                E.store3(out, i, _add3(E.qrotate(a, r), E.load3(v, i)))
 
 
 @rowloop
