@@ -30,6 +30,7 @@ _MODULES = {
         "squad", "unflip", "spline", "angular_velocity",
     ],
     "transforms": ["VQS", "VQM", "interpolate"],
+    "align": ["align_vectors", "rotation_between"],
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}
 __all__ = sorted(_WHERE)
