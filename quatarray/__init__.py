@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 _MODULES = {
     "algebra": [
         "multiply", "conjugate", "inverse", "norm", "normalize", "dot", "exp", "log",
-        "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean",
+        "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean", "approx_equal",
     ],
     "rotation": ["rotate"],
     "conversions": [
