@@ -23,7 +23,6 @@ import numpy as np
 from . import _elements as E
 from ._jit import element, like, prange, rowloop
 from ._validate import as_float, elementwise, result_dtype, shape_error, where
-from .conversions import rotvec_quat
 
 V = (3,)
 Q = (4,)
@@ -58,11 +57,12 @@ def perpendicular(v):
 @element
 def shortest_arc(b, a):
     """The rotation of least angle taking the direction of `b` to that of `a`,
-    computed step by step as scipy's ``align_vectors`` does for one pair: a
-    rotation vector (cross product scaled by θ/sin θ, a series below 1e-3 rad);
-    within 1e-3 rad of a half turn, a half turn about the cross product (for
-    exactly antiparallel vectors about :func:`perpendicular` of `a`) followed by
-    the small remainder. A zero, inf or nan vector gives nan."""
+    as scipy's ``align_vectors`` builds it for one pair: the turn by
+    θ = atan2(|c|, a·b) about c = b × a (of the unit vectors), written
+    (cos(θ/2), c / (2 cos(θ/2))), exact for tiny θ; within 1e-3 rad of a
+    half turn, a half turn about c (for exactly antiparallel vectors about
+    :func:`perpendicular` of `a`) followed by the small remainder. A zero,
+    inf or nan vector gives nan."""
     na = E.vnorm(a)
     nb = E.vnorm(b)
     a = (a[0] / na, a[1] / na, a[2] / na)
@@ -71,31 +71,28 @@ def shortest_arc(b, a):
     cn = E.vnorm(c)
     theta = np.arctan2(cn, a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
     zero = like(cn, 0.0)
-    one = like(cn, 1.0)
-    tol = like(cn, 1e-3)
-    flip = (one, zero, zero, zero)
-    if like(cn, math.pi) - theta < tol:
+    pi = like(cn, math.pi)
+    if pi - theta < like(cn, 1e-3):
         r = c if cn != zero else perpendicular(a)
         rn = E.vnorm(r)
-        flip = (zero, r[0] / rn, r[1] / rn, r[2] / rn)
-        theta = like(cn, math.pi) - theta
-        c = (-c[0], -c[1], -c[2])
-    if abs(theta) < tol:
-        t2 = theta * theta
-        k = one + t2 / like(cn, 6.0) + t2 * t2 * like(cn, 7.0 / 360.0)
-    else:
-        k = theta / np.sin(theta)
-    return E.qmul(rotvec_quat((k * c[0], k * c[1], k * c[2])), flip)
+        ch = np.cos(like(cn, 0.5) * (pi - theta))
+        k = like(cn, -0.5) / ch
+        small = (ch, k * c[0], k * c[1], k * c[2])
+        return E.qmul(small, (zero, r[0] / rn, r[1] / rn, r[2] / rn))
+    ch = np.cos(like(cn, 0.5) * theta)
+    k = like(cn, 0.5) / ch
+    return (ch, k * c[0], k * c[1], k * c[2])
 
 
 @element
-def jacobi_rotate(m, v, p, r):
-    """One Jacobi rotation zeroing m[p, r] of the symmetric 4×4 `m`, applied to
-    `m` (JᵀmJ) and to the eigenvector columns `v` (vJ), in place."""
-    apr = m[p, r]
+def jacobi_rotate(m, p, r):
+    """One Jacobi rotation zeroing entry (p, r) of the symmetric 4×4 matrix in
+    ``m[:16]`` (row-major), applied to it (JᵀMJ) and to the eigenvector
+    columns in ``m[16:]`` (VJ), in place."""
+    apr = m[4 * p + r]
     if apr == 0.0:
         return
-    tau = (m[r, r] - m[p, p]) / (2.0 * apr)
+    tau = (m[5 * r] - m[5 * p]) / (2.0 * apr)
     if abs(tau) > 1e150:
         t = 0.5 / tau
     else:
@@ -103,95 +100,92 @@ def jacobi_rotate(m, v, p, r):
         t = -t if tau < 0.0 else t
     c = 1.0 / np.sqrt(1.0 + t * t)
     s = t * c
-    for k in range(4):
-        mkp, mkr = m[k, p], m[k, r]
-        m[k, p] = c * mkp - s * mkr
-        m[k, r] = s * mkp + c * mkr
-    for k in range(4):
-        mpk, mrk = m[p, k], m[r, k]
-        m[p, k] = c * mpk - s * mrk
-        m[r, k] = s * mpk + c * mrk
-    for k in range(4):
-        vkp, vkr = v[k, p], v[k, r]
-        v[k, p] = c * vkp - s * vkr
-        v[k, r] = s * vkp + c * vkr
+    for k in range(4):  # columns p, r of M and of V
+        for base in (0, 16):
+            x, y = m[base + 4 * k + p], m[base + 4 * k + r]
+            m[base + 4 * k + p] = c * x - s * y
+            m[base + 4 * k + r] = s * x + c * y
+    for k in range(4):  # rows p, r of M
+        x, y = m[4 * p + k], m[4 * r + k]
+        m[4 * p + k] = c * x - s * y
+        m[4 * r + k] = s * x + c * y
 
 
 @element
 def davenport(bm):
     """Optimal rotation for B = Σ w a bᵀ (row-major 9-tuple, float64).
 
-    Returns ``(q, lam, g)``: q the unit eigenvector of the largest eigenvalue
-    `lam` of Davenport's K (Horn's form, rotating b onto a), signed as scipy's
-    Shepperd step signs it (the component of largest magnitude positive, ties
-    to x, y, z, then w), and g the three gaps (lam − λₖ)/2 to K's other
-    eigenvalues, which are the pair sums s₁+s₂, s₀+s₂, s₀+s₁ of B's singular
-    values (the last one negated when det B < 0).
+    Returns ``(q, lam, zeta, kappa, gmin)``: q the unit eigenvector of the
+    largest eigenvalue `lam` of Davenport's K (Horn's form, rotating b onto
+    a), signed as scipy's Shepperd step signs it (the component of largest
+    magnitude positive, ties to x, y, z, then w). The gaps gᵢ = (lam − λᵢ)/2
+    to K's other eigenvalues are the pair sums s₁+s₂, s₀+s₂, s₀+s₁ of B's
+    singular values (s₂ negated when det B < 0, as scipy's correction), so
+    sᵢ = lam − gᵢ: ζ = Πgᵢ and κ = s₀s₁ + s₁s₂ + s₂s₀ of scipy's sensitivity
+    matrix, and gmin = s₁ + s₂ for its uniqueness test.
     """
     sxx, syx, szx, sxy, syy, szy, sxz, syz, szz = bm  # S = Bᵀ: S_ij = Σ w b_i a_j
-    m = np.empty((4, 4))
-    m[0, 0] = sxx + syy + szz
-    m[1, 1] = sxx - syy - szz
-    m[2, 2] = -sxx + syy - szz
-    m[3, 3] = -sxx - syy + szz
-    m[0, 1] = m[1, 0] = syz - szy
-    m[0, 2] = m[2, 0] = szx - sxz
-    m[0, 3] = m[3, 0] = sxy - syx
-    m[1, 2] = m[2, 1] = sxy + syx
-    m[1, 3] = m[3, 1] = szx + sxz
-    m[2, 3] = m[3, 2] = syz + szy
-    # scale to a largest entry of 1 (no overflow or underflow in the rotations)
+    k01, k02, k03 = syz - szy, szx - sxz, sxy - syx
+    k12, k13, k23 = sxy + syx, szx + sxz, syz + szy
+    k = (
+        sxx + syy + szz, k01, k02, k03,
+        k01, sxx - syy - szz, k12, k13,
+        k02, k12, -sxx + syy - szz, k23,
+        k03, k13, k23, -sxx - syy + szz,
+    )  # fmt: skip
+    # scaled to a largest entry of 1 (no overflow or underflow in the rotations)
     c = 0.0
-    for i in range(4):
-        for j in range(4):
-            c = max(c, abs(m[i, j]))
+    for x in k:
+        c = max(c, abs(x))
     if not (c > 0.0 and c < np.inf):
         c = 1.0
+    m = np.zeros(32)  # K, then the eigenvectors V (columns)
+    for i in range(16):
+        m[i] = k[i] / c
     for i in range(4):
-        for j in range(4):
-            m[i, j] /= c
-    v = np.zeros((4, 4))
-    for i in range(4):
-        v[i, i] = 1.0
+        m[16 + 5 * i] = 1.0
     for _ in range(30):
         off = 0.0
         for i in range(3):
             for j in range(i + 1, 4):
-                off += m[i, j] * m[i, j]
+                off += m[4 * i + j] * m[4 * i + j]
         if not off > 1e-40:  # converged (quadratically), or nan
             break
         for i in range(3):
             for j in range(i + 1, 4):
-                jacobi_rotate(m, v, i, j)
-    k = 0
+                jacobi_rotate(m, i, j)
+    top = 0
     for i in range(1, 4):
-        if m[i, i] > m[k, k]:
-            k = i
-    lam = m[k, k]
-    g = (0.0, 0.0, 0.0)
-    n = 0
+        if m[5 * i] > m[5 * top]:
+            top = i
+    lam = m[5 * top] * c
+    # the gaps gᵢ = (lam − λᵢ)/2 and the singular values sᵢ = lam − gᵢ
+    zeta = 1.0
+    gmin = np.inf
+    ssum = 0.0
+    ssq = 0.0
     for i in range(4):
-        if i != k:
-            gi = 0.5 * (lam - m[i, i]) * c
-            g = (gi, g[1], g[2]) if n == 0 else ((g[0], gi, g[2]) if n == 1 else (g[0], g[1], gi))
-            n += 1
-    q = (v[0, k], v[1, k], v[2, k], v[3, k])
+        if i != top:
+            gi = 0.5 * (lam - m[5 * i] * c)
+            si = lam - gi
+            zeta *= gi
+            gmin = min(gmin, gi)
+            ssum += si
+            ssq += si * si
+    kappa = 0.5 * (ssum * ssum - ssq)
     big = 1
-    for i in (2, 3, 0):
-        if abs(q[i]) > abs(q[big]):
-            big = i
-    if q[big] < 0.0:
-        q = E.qneg(q)
-    return q, lam * c, g
+    for j in range(2, 5):  # x, y, z, then w
+        if abs(m[16 + 4 * (j % 4) + top]) > abs(m[16 + 4 * big + top]):
+            big = j % 4
+    f = -1.0 if m[16 + 4 * big + top] < 0.0 else 1.0
+    q = (f * m[16 + top], f * m[20 + top], f * m[24 + top], f * m[28 + top])
+    return q, lam, zeta, kappa, gmin
 
 
 @element
-def sensitivity(bm, lam, g, wmean):
-    """scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), with ζ and κ from the
-    gaps `g` of :func:`davenport` (singular values sᵢ = lam − gᵢ)."""
-    s0, s1, s2 = lam - g[0], lam - g[1], lam - g[2]
-    kappa = s0 * s1 + s1 * s2 + s2 * s0
-    f = wmean / (g[0] * g[1] * g[2])
+def sensitivity(bm, zeta, kappa, wmean):
+    """scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) (see :func:`davenport`)."""
+    f = wmean / zeta
     b = bm
     return (
         f * (kappa + b[0] * b[0] + b[1] * b[1] + b[2] * b[2]),
@@ -233,13 +227,15 @@ def fixed_fit(a, b, w, p, k):
             if i != k:
                 ai, bi, wi = load_pair(a, b, w, p, i)
                 ci = E.qrotate(q, bi)
-                sin_sum += wi * (E.cross(ci, ai)[0] * u[0] + E.cross(ci, ai)[1] * u[1] + E.cross(ci, ai)[2] * u[2])
+                ca = E.cross(ci, ai)
+                sin_sum += wi * (ca[0] * u[0] + ca[1] * u[1] + ca[2] * u[2])
                 cd = ci[0] * ai[0] + ci[1] * ai[1] + ci[2] * ai[2]
                 cu = ci[0] * u[0] + ci[1] * u[1] + ci[2] * u[2]
                 au = ai[0] * u[0] + ai[1] * u[1] + ai[2] * u[2]
                 cos_sum += wi * (cd - cu * au)
-        phi = np.arctan2(sin_sum, cos_sum)
-        q = E.qmul(rotvec_quat((phi * u[0], phi * u[1], phi * u[2])), q)
+        h = 0.5 * np.arctan2(sin_sum, cos_sum)
+        sh = np.sin(h)
+        q = E.qmul((np.cos(h), sh * u[0], sh * u[1], sh * u[2]), q)
     ssd = 0.0
     for i in range(n):
         ai, bi, wi = load_pair(a, b, w, p, i)
@@ -293,12 +289,11 @@ def _align(a, b, w, q_out, rssd_out, sens_out, flags):
             flag |= _FIXED
             q, rssd = fixed_fit(a, b, w, p, kinf)
         else:
-            q, lam, g = davenport(bm)
+            q, lam, zeta, kappa, gmin = davenport(bm)
             rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
-            gmin = min(g[0], min(g[1], g[2]))
             if gmin < 1e-16 * (lam - gmin):
                 flag = _NOT_UNIQUE
-            sens = sensitivity(bm, lam, g, wsum / n)
+            sens = sensitivity(bm, zeta, kappa, wsum / n)
         flags[p] = flag
         E.store4(q_out, p, q)
         rssd_out[p] = rssd
