@@ -117,10 +117,10 @@ def _outer_sum(q, w, acc):
     # its scale; a zero, inf or nan row makes acc[g] nan).
     for g in range(q.shape[0]):
         for i in range(q.shape[1]):
-            a = (float(q[g, i, 0]), float(q[g, i, 1]), float(q[g, i, 2]), float(q[g, i, 3]))
+            a = (np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3]))
             m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
             a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
-            s = float(w[g, i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+            s = np.float64(w[g, i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
             for r in range(4):
                 for c in range(4):
                     acc[g, r, c] += s * a[r] * a[c]
