@@ -16,13 +16,14 @@ __version__ = "0.1.0"
 _MODULES = {
     "algebra": [
         "multiply", "conjugate", "inverse", "norm", "normalize", "dot", "exp", "log",
-        "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean",
+        "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean", "approx_equal",
     ],
     "rotation": ["rotate"],
     "conversions": [
         "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle",
         "from_axis_angle", "as_xyzw", "from_xyzw", "to_scipy", "from_scipy",
         "as_left_matrix", "as_right_matrix", "as_su2", "from_su2",
+        "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
     ],
     "euler": ["as_euler", "from_euler"],
     "interpolation": [
@@ -30,6 +31,7 @@ _MODULES = {
         "squad", "unflip", "spline", "angular_velocity",
     ],
     "transforms": ["VQS", "VQM", "interpolate"],
+    "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }

@@ -192,6 +192,16 @@ TABLE = {
         (_each(f, s.p, seq), f(s.p, seq, degrees=True)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
     "from_euler": _f("from_euler", lambda f, s: [
         (_each(f, seq, s.eul), f(seq, s.eul, degrees=True), f(seq, 1e7 * s.eul)) for seq in ("xyz", "ZXZ")]),
+    "as_mrp": _f("as_mrp", lambda f, s: _each(f, s.p, out=True)),
+    "from_mrp": _f("from_mrp", lambda f, s: _each(f, s.rv, out=True)),
+    "as_gibbs": _f("as_gibbs", lambda f, s: _each(f, s.p, out=True)),
+    "from_gibbs": _f("from_gibbs", lambda f, s: _each(f, s.rv, out=True)),
+    "approx_equal": _f("approx_equal", lambda f, s: (_each(f, s.p, s.q), f(s.p, s.q, atol=0.1))),
+    # vector alignment
+    "align_vectors": _f("align_vectors", lambda f, s: (
+        f(s.v, s.rv), f(s.v, s.rv, weights=s.s, return_sensitivity=True), f(s.v[:1], s.rv[:1]),
+        f(s.v.reshape(2, -1, 3), s.rv.reshape(2, -1, 3)))),
+    "rotation_between": _f("rotation_between", lambda f, s: _each(f, s.v, s.rv)),
     # interpolation
     "lerp": _f("lerp", lambda f, s: _interp(f, s)),
     "nlerp": _f("nlerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),

@@ -5,6 +5,7 @@ like numpy; float32 stays float32, float64 stays float64, mixed gives
 float64. Element-wise functions accept ``out=`` (which may be an input).
 """
 
+import warnings
 
 import numpy as np
 
@@ -214,18 +215,19 @@ def _cumprod(q, out):
 
 @kernel
 def _outer_sum(q, w, acc):
-    # acc (4, 4) float64 += w_i q_i q_iᵀ / |q_i|², accumulated in float64; each q_i
-    # is first divided by its largest |component| (no overflow or underflow in the
-    # squares, whatever its scale; a zero, inf or nan row makes acc nan).
-    for i in range(q.shape[0]):
-        # np.float64, not float: without the JIT, 0/0 must give nan, not raise
-        a = (np.float64(q[i, 0]), np.float64(q[i, 1]), np.float64(q[i, 2]), np.float64(q[i, 3]))
-        m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
-        a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
-        s = float(w[i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-        for r in range(4):
-            for c in range(4):
-                acc[r, c] += s * a[r] * a[c]
+    # For each group g: acc[g] (4, 4) float64 += w_i q_i q_iᵀ / |q_i|² over the rows
+    # i of q[g] (G, M, 4), w (G, M), accumulated in float64; each q_i is first divided
+    # by its largest |component| (no overflow or underflow in the squares, whatever
+    # its scale; a zero, inf or nan row makes acc[g] nan).
+    for g in range(q.shape[0]):
+        for i in range(q.shape[1]):
+            a = (np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3]))
+            m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
+            a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
+            s = np.float64(w[g, i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+            for r in range(4):
+                for c in range(4):
+                    acc[g, r, c] += s * a[r] * a[c]
 
 
 # --------------------------------------------------------------------------
@@ -458,9 +460,22 @@ def random(n=None, rng=None, dtype=np.float64):
     return (q / nrm).astype(dtype)
 
 
-def mean(q, weights=None):
+def _reduce_axes(axis, nlead):
+    """scipy 1.17's `axis` of ``Rotation.mean`` as a sorted tuple of leading axes."""
+    if axis is None:
+        return tuple(range(nlead))
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+        axis = (int(axis),)
+    if not isinstance(axis, tuple) or not all(isinstance(k, (int, np.integer)) for k in axis):
+        raise ValueError(f"Expected `axis` to be None, an int or a tuple of ints, got {axis!r}.")
+    if any(not -nlead <= k < nlead for k in axis):
+        raise ValueError(f"Expected `axis` in [{-nlead}, {nlead - 1}] (the leading axes of `q`), got {axis}.")
+    return tuple(sorted({k % nlead for k in axis}))
+
+
+def mean(q, weights=None, axis=None):
     """Rotation mean as scipy's ``Rotation.mean``: the eigenvector of the largest
-    eigenvalue of Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (sign-invariant), over all leading axes.
+    eigenvalue of Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (sign-invariant), over the leading axes `axis`.
 
     Returns the canonical sign (see :func:`canonical`). Weights that are all
     zero give the identity, as in scipy. A zero, inf or nan quaternion, or a
@@ -468,35 +483,67 @@ def mean(q, weights=None):
     row (scipy refuses zero and nan quaternions and fails to converge on the
     others).
 
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    weights : array_like, optional
+        Non-negative, broadcasting against the leading shape of `q`.
+    axis : None, int or tuple of int, optional
+        The leading axes to average over, as scipy 1.17: None (default) all of
+        them, ``()`` none (each rotation is its own mean).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        The leading shape of `q` without the axes in `axis`.
+
     Examples
     --------
     >>> import numpy as np, quatarray as qa
     >>> q = qa.from_rotvec([[0, 0, 0.1], [0, 0, -0.1]])
     >>> np.allclose(qa.mean(q), [1, 0, 0, 0])
     True
+    >>> qa.mean(qa.random((3, 5), rng=0), axis=1).shape
+    (3, 4)
     """
     a = check_core(as_float(q, "q"), "q", Q)
-    flat = a.reshape(-1, 4)
-    if flat.shape[0] == 0:
-        raise ValueError("Expected `q` to hold at least one quaternion, got shape " f"{a.shape}.")
+    lead = a.shape[:-1]
+    red = _reduce_axes(axis, len(lead))
+    keep = tuple(k for k in range(len(lead)) if k not in red)
+    count = int(np.prod([lead[k] for k in red]))
+    if a.size == 0 or count == 0:
+        raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{a.shape}.")
     if weights is None:
-        w = np.ones(flat.shape[0])
+        w = np.ones(lead)
     else:
         w = as_float(weights, "weights", np.float64)
-        if w.shape != a.shape[:-1]:
-            raise ValueError(f"Expected `weights` to have shape {a.shape[:-1]}, got {w.shape}.")
-        w = w.reshape(-1)
+        try:
+            w = np.broadcast_to(w, lead)
+        except ValueError:
+            raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
         if np.any(w < 0):
-            k = int(np.argmax(w < 0))
-            raise ValueError(f"Expected `weights` to be non-negative; {where(k, a.shape[:-1])} has weight {w[k]}.")
-    acc = np.zeros((4, 4))
-    _outer_sum(flat, w, acc)
-    if not np.isfinite(acc).all():
-        raise _mean_bad_row(flat, w, a.shape[:-1])
-    if not acc.any():  # all weights zero: scipy's answer
-        return identity(dtype=a.dtype)
-    vals, vecs = np.linalg.eigh(acc)
-    return canonical(vecs[:, -1].astype(a.dtype))
+            k = int(np.argmax((w < 0).reshape(-1)))
+            raise ValueError(
+                f"Expected `weights` to be non-negative; {where(k, lead)} has weight {w.reshape(-1)[k]}."
+            )
+    order = keep + red
+    out_lead = tuple(lead[k] for k in keep)
+    groups = int(np.prod(out_lead))
+    qg = np.transpose(a, order + (len(lead),)).reshape(groups, count, 4)
+    wg = np.transpose(w, order).reshape(groups, count)
+    acc = np.zeros((groups, 4, 4))
+    _outer_sum(qg, wg, acc)
+    finite = np.isfinite(acc).all(axis=(1, 2))
+    if not finite.all():
+        g = int(np.argmin(finite))
+        # the first bad row of that group, named by its index in `q`
+        qq = np.moveaxis(a, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else a
+        ww = np.moveaxis(w, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else w
+        raise _mean_bad_row(qq.reshape(-1, 4), ww.reshape(-1), qq.shape[:-1])
+    zero = ~acc.any(axis=(1, 2))
+    acc[zero] = np.diag([1.0, 0.0, 0.0, 0.0])  # all weights zero: scipy's answer, the identity
+    vecs = np.linalg.eigh(acc)[1][..., -1]
+    return canonical(vecs.astype(a.dtype)).reshape(out_lead + Q)
 
 
 def _mean_bad_row(flat, w, lead):
@@ -511,3 +558,40 @@ def _mean_bad_row(flat, w, lead):
         what = "zero" if finite[k] else "not finite"
         return ValueError(f"Expected `q` to be finite and non-zero; {where(k, lead)} is {what}: {flat[k].tolist()}.")
     return ValueError(f"Expected `weights` to be finite; {where(k, lead)} has weight {w[k]}.")
+
+
+def approx_equal(p, q, atol=None, degrees=False):
+    """Whether p and q are the same rotation within `atol`, as scipy's
+    ``Rotation.approx_equal``: ``distance(p, q) < atol`` (strictly less, as scipy).
+
+    Sign-blind (q and −q are the same rotation) and scale-blind; leading
+    dimensions broadcast.
+
+    Parameters
+    ----------
+    p, q : array_like, shape (..., 4)
+    atol : float, optional
+        Largest angle between the two; scipy's default 1e-8 rad.
+    degrees : bool, optional
+        `atol` is in degrees. Without an `atol` this warns and uses 1e-8 rad,
+        as scipy does.
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> bool(qa.approx_equal([1, 0, 0, 0], [-2, 0, 0, 0]))
+    True
+    >>> qa.approx_equal(qa.from_rotvec([[0, 0, 0.01], [0, 0, 0.1]]), qa.identity(), atol=1, degrees=True)
+    array([ True, False])
+    """
+    if atol is None:
+        if degrees:
+            warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.", stacklevel=2)
+        atol = 1e-8
+    elif degrees:
+        atol = np.deg2rad(atol)
+    return np.less(distance(p, q), atol)

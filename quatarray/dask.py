@@ -154,6 +154,10 @@ def _from_su2_rule(dtypes):
     return np.dtype(np.float32) if all(d in (np.complex64, np.float32) for d in dtypes) else np.dtype(np.float64)
 
 
+def _bool_rule(dtypes):
+    return np.dtype(np.bool_)
+
+
 def _check_dtype(x, name, rule):
     """The dtype a block of `x` is computed in (TypeError for complex/object, as in memory)."""
     if rule is _from_su2_rule and x.dtype.kind == "c":
@@ -314,6 +318,12 @@ _ELEMENTWISE = {
     "double": ((("p", Q), ("q", Q)), (Q,)),
     "bisect": ((("p", Q), ("q", Q)), (Q,)),
     "bezier": ((("q0", Q), ("a", Q), ("b", Q), ("q1", Q), ("t", ())), (Q,)),
+    "as_mrp": ((("q", Q),), (V,)),
+    "from_mrp": ((("p", V),), (Q,)),
+    "as_gibbs": ((("q", Q),), (V,)),
+    "from_gibbs": ((("g", V),), (Q,)),
+    "rotation_between": ((("u", V), ("v", V)), (Q,)),
+    "approx_equal": ((("p", Q), ("q", Q)), ((),), _bool_rule),
 }
 
 for _name, _spec in _ELEMENTWISE.items():

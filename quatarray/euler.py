@@ -243,6 +243,32 @@ def _parse_seq(seq):
     return params
 
 
+_SHORT = {
+    s: tuple("xyz".index(ch) for ch in s.lower()) for a in "xyz" for b in ("", *"xyz") if a != b
+    for s in (a + b, (a + b).upper())
+}
+
+_ALLOWED_SHORT = (
+    "Expected `seq` to be one to three axes from 'x', 'y', 'z' (lower case: extrinsic) or "
+    "'X', 'Y', 'Z' (upper case: intrinsic), not mixed, with no axis twice in a row"
+)
+
+
+def _parse_from_seq(seq):
+    """(three axes, intrinsic, number of axes given) for :func:`from_euler`, which
+    also takes scipy's one- and two-axis sequences: they are padded with a zero
+    angle about a further axis (an exact identity factor)."""
+    if isinstance(seq, str) and seq in _SHORT:
+        axes = _SHORT[seq]
+        return axes + (0,) * (3 - len(axes)), seq.isupper(), len(axes)
+    if isinstance(seq, str) and len(seq) == 3 and seq in _SEQS:
+        axes, intrinsic, _ = _SEQS[seq]
+        return axes, intrinsic, 3
+    if not isinstance(seq, str):
+        raise TypeError(f"{_ALLOWED_SHORT}; got {type(seq).__name__} {seq!r}.")
+    raise ValueError(f"{_ALLOWED_SHORT}; got {seq!r}.")
+
+
 def _rows(a, core):
     """``a`` as a C-contiguous ``(n,) + core`` array (a copy only when ``a`` is strided)."""
     return np.ascontiguousarray(a.reshape((-1,) + core))
@@ -260,7 +286,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     q : array_like, shape (..., 4)
         Quaternions (w, x, y, z).
     seq : str
-        Three axes: ``"xyz"``-style lower case for extrinsic rotations,
+        Three axes (as in scipy, ``as_euler`` has no one- or two-axis form:
+        those raise ``ValueError``): ``"xyz"``-style lower case for extrinsic rotations,
         ``"XYZ"``-style upper case for intrinsic ones (not mixed); 6 Tait–Bryan
         sequences (``"xyz"``, ``"zyx"``, …) and 6 proper Euler ones (``"zxz"``, …).
     degrees : bool, optional
@@ -326,10 +353,12 @@ def from_euler(seq, angles, degrees=False):
     Parameters
     ----------
     seq : str
-        Three axes, lower case extrinsic or upper case intrinsic (see
-        :func:`as_euler`).
-    angles : array_like, shape (..., 3)
-        Angles in the order of `seq`; any leading shape.
+        One to three axes, lower case extrinsic or upper case intrinsic (see
+        :func:`as_euler`), as scipy: ``"z"``, ``"XY"``, ``"zyx"`` …
+    angles : array_like, shape (..., k)
+        Angles in the order of `seq` (k = ``len(seq)``); any leading shape.
+        For one axis, as in scipy, also a plain scalar (one rotation); a
+        ``(N,)`` array of angles about one axis must be given as ``(N, 1)``.
     degrees : bool, optional
         `angles` are in degrees.
 
@@ -347,10 +376,17 @@ def from_euler(seq, angles, degrees=False):
     array([0., 0., 0., 1.])
     >>> qa.from_euler("ZYX", np.zeros((2, 5, 3))).shape
     (2, 5, 4)
+    >>> np.round(qa.from_euler("z", 90, degrees=True), 12)  # one axis
+    array([0.70710678, 0.        , 0.        , 0.70710678])
     """
-    axes, intrinsic, _ = _parse_seq(seq)
-    a = check_core(as_float(angles, "angles"), "angles", (3,))
-    flat = _rows(a, (3,))
+    axes, intrinsic, k = _parse_from_seq(seq)
+    a = as_float(angles, "angles")
+    if k == 1 and a.ndim == 0:
+        a = a[None]
+    a = check_core(a, "angles", (k,))
+    flat = _rows(a, (k,))
+    if k < 3:  # zero angles about the padding axis: an exact identity factor
+        flat = np.concatenate([flat, np.zeros((flat.shape[0], 3 - k), flat.dtype)], axis=1)
     out = np.empty((flat.shape[0], 4), a.dtype)
     far = np.empty(flat.shape[0], np.bool_)
     args = (flat, axes[0], axes[1], axes[2], intrinsic, math.pi / 180.0 if degrees else 1.0, out, far)

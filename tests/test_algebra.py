@@ -552,3 +552,48 @@ def test_concurrent_threads_on_workqueue_layer(tmp_path):
     env = dict(os.environ, NUMBA_THREADING_LAYER="workqueue", QUATARRAY_PARALLEL_MIN_ROWS="1000")
     r = subprocess.run([sys.executable, "-c", _THREADS_SCRIPT], env=env, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+def test_mean_axis_matches_scipy(rng):
+    from scipy.spatial.transform import Rotation as R
+
+    q = qa.random((3, 4, 5), rng=rng)
+    w = rng.random((3, 4, 5))
+    r = R.from_quat(q, scalar_first=True)
+    for axis in [None, 0, 1, 2, -1, (0, 2), (2, 0), (0, 1, 2), (1, 1), ()]:
+        for weights in [None, w, w[0, :, :1]]:
+            want = r.mean(weights=weights, axis=axis).as_quat(scalar_first=True)
+            got = qa.mean(q, weights, axis=axis)
+            assert got.shape == want.shape
+            assert np.all(qa.distance(got, want) < 1e-12)
+    np.testing.assert_allclose(qa.mean(-q, axis=()), qa.canonical(q))
+    np.testing.assert_array_equal(qa.mean(q, np.zeros(5), axis=1), np.tile([1.0, 0, 0, 0], (3, 5, 1)))
+    assert qa.mean(q.astype(np.float32), axis=0).dtype == np.float32
+    for bad in [3, -4, (0, 3), [0], 1.0]:
+        with pytest.raises(ValueError, match="axis"):
+            qa.mean(q, axis=bad)
+    with pytest.raises(ValueError, match="broadcast"):
+        qa.mean(q, np.ones(4))
+    with pytest.raises(ValueError, match="at least one"):
+        qa.mean(np.ones((3, 0, 4)), axis=1)
+    bad = q.copy()
+    bad[1, 2, 3] = 0
+    with pytest.raises(ValueError, match=r"index \(1, 2, 3\)|row"):
+        qa.mean(bad, axis=2)
+
+
+def test_approx_equal_matches_scipy(rng):
+    from scipy.spatial.transform import Rotation as R
+
+    p = qa.random(500, rng=rng)
+    q = qa.multiply(p, qa.from_rotvec(rng.standard_normal((500, 3)) * 10.0 ** rng.uniform(-12, -1, (500, 1))))
+    q[::3] *= -2  # sign- and scale-blind
+    rp, rq = R.from_quat(p, scalar_first=True), R.from_quat(q, scalar_first=True)
+    for atol in [None, 1e-9, 1e-6, 1e-3]:
+        np.testing.assert_array_equal(qa.approx_equal(p, q, atol), rp.approx_equal(rq, atol))
+    np.testing.assert_array_equal(qa.approx_equal(p, q, 0.01, degrees=True), rp.approx_equal(rq, 0.01, degrees=True))
+    with pytest.warns(UserWarning, match="atol must be set"):
+        qa.approx_equal(p, q, degrees=True)
+    assert qa.approx_equal(p[:, None], p[None, :10]).shape == (500, 10)
+    assert qa.approx_equal(p[0], p[0]).dtype == np.bool_
+    assert qa.approx_equal(p.astype(np.float32), p.astype(np.float32), 1e-3).all()

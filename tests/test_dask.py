@@ -147,6 +147,12 @@ def _cases(q):
         "double": ((p, q), {}),
         "bisect": ((p, q), {}),
         "bezier": ((p, unit, qa.random(n, rng=3), p[::-1], t), {}),
+        "as_mrp": ((q,), {}),
+        "from_mrp": ((v,), {}),
+        "as_gibbs": ((q,), {}),
+        "from_gibbs": ((v,), {}),
+        "rotation_between": ((v, v[::-1]), {}),
+        "approx_equal": ((p, qa.multiply(p, qa.from_rotvec(v * 1e-3))), {"atol": 2e-3}),
     }
     return cases
 

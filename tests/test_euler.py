@@ -241,8 +241,9 @@ def test_bad_seq():
     for bad in ["xyzx", "xy", "xxy", "xyy", "xYz", "abc", "", "XxZ"]:
         with pytest.raises(ValueError, match="Expected `seq`.*'xyz'.*'zxz'"):
             qa.as_euler([1, 0, 0, 0], bad)
-        with pytest.raises(ValueError, match="Expected `seq`"):
-            qa.from_euler(bad, [0, 0, 0])
+        if bad != "xy":  # a valid two-axis sequence for from_euler (scipy)
+            with pytest.raises(ValueError, match="Expected `seq`"):
+                qa.from_euler(bad, [0, 0, 0])
     with pytest.raises(TypeError, match="Expected `seq`"):
         qa.from_euler(None, [0, 0, 0])
 
@@ -403,3 +404,34 @@ def test_sincos_accuracy(loops):
     loops[1](x32, s32, c32)
     assert np.abs(s32 - np.sin(x32.astype(np.float64))).max() < 2e-7
     assert np.abs(c32 - np.cos(x32.astype(np.float64))).max() < 2e-7
+
+
+@pytest.mark.parametrize("seq", ["x", "Y", "z", "xy", "XZ", "yx", "ZY", "zx", "YX"])
+def test_from_euler_one_two_axes_vs_scipy(seq):
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(len(seq) + ord(seq[0]))
+    ang = rng.uniform(-4, 4, (50, len(seq)))
+    want = Rotation.from_euler(seq, ang).as_quat(scalar_first=True)
+    np.testing.assert_allclose(qa.from_euler(seq, ang), want, atol=1e-15)
+    np.testing.assert_allclose(qa.from_euler(seq, np.rad2deg(ang), degrees=True), want, atol=1e-14)
+    got32 = qa.from_euler(seq, ang.astype(np.float32))
+    assert got32.dtype == np.float32 and np.allclose(got32, want, atol=1e-6)
+    assert qa.from_euler(seq, ang.reshape(5, 10, -1)).shape == (5, 10, 4)
+    np.testing.assert_allclose(qa.from_euler(seq, ang[0]), want[0], atol=1e-15)
+    with pytest.raises(ValueError, match=rf"\(\.\.\., {len(seq)}\)"):
+        qa.from_euler(seq, np.zeros((2, len(seq) + 1)))
+
+
+def test_euler_short_sequences_rules():
+    from scipy.spatial.transform import Rotation
+
+    np.testing.assert_allclose(qa.from_euler("x", 0.3), Rotation.from_euler("x", 0.3).as_quat(scalar_first=True))
+    for bad in ["xx", "xY", "", "xyzx", "w"]:
+        with pytest.raises(ValueError):
+            qa.from_euler(bad, np.zeros(max(len(bad), 1)))
+    with pytest.raises(ValueError):
+        qa.from_euler("xy", 0.3)  # two axes need two angles, as scipy
+    for seq in ["x", "xy", "ZX"]:
+        with pytest.raises(ValueError, match="three axes"):  # scipy's as_euler: three axes only
+            qa.as_euler([1, 0, 0, 0], seq)

@@ -21,6 +21,7 @@ MODULES = [
     "test_trig.py",
     "test_interpolation.py",
     "test_transforms.py",
+    "test_align.py",
     "test_kinematics.py",
 ]
 

@@ -1,0 +1,477 @@
+"""Rotations fitted to vectors: Wahba's problem and the shortest arc.
+
+Quaternions are ``(..., 4)`` arrays in (w, x, y, z) order, active rotations
+(``rotate(q, b) ≈ a``). :func:`align_vectors` solves many independent
+problems at once, one numba kernel pass per problem: it accumulates
+B = Σ wᵢ aᵢ bᵢᵀ (in float64), builds Davenport's symmetric 4×4 matrix K
+from it and takes the eigenvector of K's largest eigenvalue, found by a
+cyclic Jacobi iteration. That eigenvector is the optimal *proper* rotation
+(the Kabsch solution with scipy's determinant correction: never a
+reflection), and K's other eigenvalues give scipy's ``rssd`` and
+sensitivity matrix without an SVD. A pair with infinite weight, or a single
+pair, takes scipy's other path: the shortest arc between the primary
+vectors, then the best turn about them for the other pairs.
+
+:func:`rotation_between` is that shortest arc, element-wise.
+"""
+
+import math
+import warnings
+
+import numpy as np
+
+from . import _elements as E
+from ._jit import element, like, prange, rowloop
+from ._validate import as_float, elementwise, result_dtype, shape_error, where
+
+V = (3,)
+Q = (4,)
+
+# flags set by the kernel, one byte per problem
+_SEVERAL_INF = 1  # more than one infinite weight (scipy raises)
+_ZERO_PRIMARY = 2  # the primary (infinite-weight or only) pair has a zero vector (scipy raises)
+_FIXED = 4  # solved by the primary-pair path (no sensitivity matrix)
+_NOT_UNIQUE = 8  # the optimum is not unique (scipy warns)
+
+# --------------------------------------------------------------------------
+# per-element math
+
+
+@element
+def perpendicular(v):
+    """scipy's axis for a half turn away from unit `v` (``_align_vectors_fixed``):
+    with i the index of v's smallest |component|, r[i−1] = v[i−2], r[i−2] = −v[i−1]."""
+    zero = like(v[0], 0.0)
+    i = 0
+    if abs(v[1]) < abs(v[0]):
+        i = 1
+    if abs(v[2]) < abs(v[i]):
+        i = 2
+    if i == 0:
+        return (zero, -v[2], v[1])
+    if i == 1:
+        return (v[2], zero, -v[0])
+    return (-v[1], v[0], zero)
+
+
+@element
+def shortest_arc(b, a):
+    """The rotation of least angle taking the direction of `b` to that of `a`,
+    as scipy's ``align_vectors`` builds it for one pair: the turn by
+    θ = atan2(|c|, a·b) about c = b × a (of the unit vectors), written
+    (cos(θ/2), c / (2 cos(θ/2))), exact for tiny θ; within 1e-3 rad of a
+    half turn, a half turn about c (for exactly antiparallel vectors about
+    :func:`perpendicular` of `a`) followed by the small remainder. A zero,
+    inf or nan vector gives nan."""
+    na = E.vnorm(a)
+    nb = E.vnorm(b)
+    a = (a[0] / na, a[1] / na, a[2] / na)
+    b = (b[0] / nb, b[1] / nb, b[2] / nb)
+    c = E.cross(b, a)
+    cn = E.vnorm(c)
+    theta = np.arctan2(cn, a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+    zero = like(cn, 0.0)
+    pi = like(cn, math.pi)
+    if pi - theta < like(cn, 1e-3):
+        r = c if cn != zero else perpendicular(a)
+        rn = E.vnorm(r)
+        ch = np.cos(like(cn, 0.5) * (pi - theta))
+        k = like(cn, -0.5) / ch
+        small = (ch, k * c[0], k * c[1], k * c[2])
+        return E.qmul(small, (zero, r[0] / rn, r[1] / rn, r[2] / rn))
+    ch = np.cos(like(cn, 0.5) * theta)
+    k = like(cn, 0.5) / ch
+    return (ch, k * c[0], k * c[1], k * c[2])
+
+
+@element
+def jacobi_rotate(m, p, r):
+    """One Jacobi rotation zeroing entry (p, r) of the symmetric 4×4 matrix in
+    ``m[:16]`` (row-major), applied to it (JᵀMJ) and to the eigenvector
+    columns in ``m[16:]`` (VJ), in place."""
+    apr = m[4 * p + r]
+    if apr == 0.0:
+        return
+    tau = (m[5 * r] - m[5 * p]) / (2.0 * apr)
+    if abs(tau) > 1e150:
+        t = 0.5 / tau
+    else:
+        t = 1.0 / (abs(tau) + np.sqrt(1.0 + tau * tau))
+        t = -t if tau < 0.0 else t
+    c = 1.0 / np.sqrt(1.0 + t * t)
+    s = t * c
+    for k in range(4):  # columns p, r of M and of V
+        for base in (0, 16):
+            x, y = m[base + 4 * k + p], m[base + 4 * k + r]
+            m[base + 4 * k + p] = c * x - s * y
+            m[base + 4 * k + r] = s * x + c * y
+    for k in range(4):  # rows p, r of M
+        x, y = m[4 * p + k], m[4 * r + k]
+        m[4 * p + k] = c * x - s * y
+        m[4 * r + k] = s * x + c * y
+
+
+@element
+def davenport(bm):
+    """Optimal rotation for B = Σ w a bᵀ (row-major 9-tuple, float64).
+
+    Returns ``(q, lam, zeta, kappa, gmin)``: q the unit eigenvector of the
+    largest eigenvalue `lam` of Davenport's K (Horn's form, rotating b onto
+    a), signed as scipy's Shepperd step signs it (the component of largest
+    magnitude positive, ties to x, y, z, then w). The gaps gᵢ = (lam − λᵢ)/2
+    to K's other eigenvalues are the pair sums s₁+s₂, s₀+s₂, s₀+s₁ of B's
+    singular values (s₂ negated when det B < 0, as scipy's correction), so
+    sᵢ = lam − gᵢ: ζ = Πgᵢ and κ = s₀s₁ + s₁s₂ + s₂s₀ of scipy's sensitivity
+    matrix, and gmin = s₁ + s₂ for its uniqueness test.
+    """
+    sxx, syx, szx, sxy, syy, szy, sxz, syz, szz = bm  # S = Bᵀ: S_ij = Σ w b_i a_j
+    k01, k02, k03 = syz - szy, szx - sxz, sxy - syx
+    k12, k13, k23 = sxy + syx, szx + sxz, syz + szy
+    k = (
+        sxx + syy + szz, k01, k02, k03,
+        k01, sxx - syy - szz, k12, k13,
+        k02, k12, -sxx + syy - szz, k23,
+        k03, k13, k23, -sxx - syy + szz,
+    )  # fmt: skip
+    # scaled to a largest entry of 1 (no overflow or underflow in the rotations)
+    c = 0.0
+    for x in k:
+        c = max(c, abs(x))
+    if not (c > 0.0 and c < np.inf):
+        c = 1.0
+    m = np.zeros(32)  # K, then the eigenvectors V (columns)
+    for i in range(16):
+        m[i] = k[i] / c
+    for i in range(4):
+        m[16 + 5 * i] = 1.0
+    for _ in range(30):
+        off = 0.0
+        for i in range(3):
+            for j in range(i + 1, 4):
+                off += m[4 * i + j] * m[4 * i + j]
+        if not off > 1e-40:  # converged (quadratically), or nan
+            break
+        for i in range(3):
+            for j in range(i + 1, 4):
+                jacobi_rotate(m, i, j)
+    top = 0
+    for i in range(1, 4):
+        if m[5 * i] > m[5 * top]:
+            top = i
+    lam = m[5 * top] * c
+    # the gaps gᵢ = (lam − λᵢ)/2 and the singular values sᵢ = lam − gᵢ
+    zeta = 1.0
+    gmin = np.inf
+    ssum = 0.0
+    ssq = 0.0
+    for i in range(4):
+        if i != top:
+            gi = 0.5 * (lam - m[5 * i] * c)
+            si = lam - gi
+            zeta *= gi
+            gmin = min(gmin, gi)
+            ssum += si
+            ssq += si * si
+    kappa = 0.5 * (ssum * ssum - ssq)
+    big = 1
+    for j in range(2, 5):  # x, y, z, then w
+        if abs(m[16 + 4 * (j % 4) + top]) > abs(m[16 + 4 * big + top]):
+            big = j % 4
+    f = -1.0 if m[16 + 4 * big + top] < 0.0 else 1.0
+    q = (f * m[16 + top], f * m[20 + top], f * m[24 + top], f * m[28 + top])
+    return q, lam, zeta, kappa, gmin
+
+
+@element
+def sensitivity(bm, zeta, kappa, wmean):
+    """scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) (see :func:`davenport`)."""
+    f = wmean / zeta
+    b = bm
+    return (
+        f * (kappa + b[0] * b[0] + b[1] * b[1] + b[2] * b[2]),
+        f * (b[0] * b[3] + b[1] * b[4] + b[2] * b[5]),
+        f * (b[0] * b[6] + b[1] * b[7] + b[2] * b[8]),
+        f * (b[3] * b[0] + b[4] * b[1] + b[5] * b[2]),
+        f * (kappa + b[3] * b[3] + b[4] * b[4] + b[5] * b[5]),
+        f * (b[3] * b[6] + b[4] * b[7] + b[5] * b[8]),
+        f * (b[6] * b[0] + b[7] * b[1] + b[8] * b[2]),
+        f * (b[6] * b[3] + b[7] * b[4] + b[8] * b[5]),
+        f * (kappa + b[6] * b[6] + b[7] * b[7] + b[8] * b[8]),
+    )
+
+
+@element
+def load_pair(a, b, w, p, i):
+    """Pair i of problem p as float64: (a_i, b_i, w_i)."""
+    return (
+        (float(a[p, i, 0]), float(a[p, i, 1]), float(a[p, i, 2])),
+        (float(b[p, i, 0]), float(b[p, i, 1]), float(b[p, i, 2])),
+        float(w[p, i]),
+    )
+
+
+@element
+def fixed_fit(a, b, w, p, k):
+    """scipy's ``_align_vectors_fixed`` for problem p with primary pair k:
+    the shortest arc between the primary vectors, then the turn φ about the
+    primary direction that best aligns the other pairs. Returns (q, rssd)."""
+    ak, bk, wk = load_pair(a, b, w, p, k)
+    q = shortest_arc(bk, ak)
+    n = a.shape[1]
+    if n > 1:
+        na = E.vnorm(ak)
+        u = (ak[0] / na, ak[1] / na, ak[2] / na)
+        sin_sum = 0.0
+        cos_sum = 0.0
+        for i in range(n):
+            if i != k:
+                ai, bi, wi = load_pair(a, b, w, p, i)
+                ci = E.qrotate(q, bi)
+                ca = E.cross(ci, ai)
+                sin_sum += wi * (ca[0] * u[0] + ca[1] * u[1] + ca[2] * u[2])
+                cd = ci[0] * ai[0] + ci[1] * ai[1] + ci[2] * ai[2]
+                cu = ci[0] * u[0] + ci[1] * u[1] + ci[2] * u[2]
+                au = ai[0] * u[0] + ai[1] * u[1] + ai[2] * u[2]
+                cos_sum += wi * (cd - cu * au)
+        h = 0.5 * np.arctan2(sin_sum, cos_sum)
+        sh = np.sin(h)
+        q = E.qmul((np.cos(h), sh * u[0], sh * u[1], sh * u[2]), q)
+    ssd = 0.0
+    for i in range(n):
+        ai, bi, wi = load_pair(a, b, w, p, i)
+        if (n > 1 or wi == np.inf) and i == k:
+            continue  # the primary pair is held exactly: it counts 0
+        e = E.qrotate(q, bi)
+        d0, d1, d2 = ai[0] - e[0], ai[1] - e[1], ai[2] - e[2]
+        ssd += wi * (d0 * d0 + d1 * d1 + d2 * d2)
+    return q, np.sqrt(ssd)
+
+
+# --------------------------------------------------------------------------
+# batched loops
+
+
+@rowloop
+def _align(a, b, w, q_out, rssd_out, sens_out, flags):
+    # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); sens_out (P, 3, 3)
+    n = a.shape[1]
+    for p in prange(a.shape[0]):
+        bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        ssq = 0.0
+        wsum = 0.0
+        ninf = 0
+        kinf = 0
+        for i in range(n):
+            ai, bi, wi = load_pair(a, b, w, p, i)
+            if wi == np.inf:
+                if ninf == 0:
+                    kinf = i
+                ninf += 1
+            wa = (wi * ai[0], wi * ai[1], wi * ai[2])
+            bm = (
+                bm[0] + wa[0] * bi[0], bm[1] + wa[0] * bi[1], bm[2] + wa[0] * bi[2],
+                bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
+                bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
+            )  # fmt: skip
+            ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2] + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
+            wsum += wi
+        nan = np.nan
+        flag = 0
+        sens = (nan, nan, nan, nan, nan, nan, nan, nan, nan)
+        if ninf > 1:
+            flag = _SEVERAL_INF
+            q = (nan, nan, nan, nan)
+            rssd = nan
+        elif ninf == 1 or n == 1:
+            ak, bk, wk = load_pair(a, b, w, p, kinf)
+            if E.vnorm(ak) == 0.0 or E.vnorm(bk) == 0.0:
+                flag = _ZERO_PRIMARY
+            flag |= _FIXED
+            q, rssd = fixed_fit(a, b, w, p, kinf)
+        else:
+            q, lam, zeta, kappa, gmin = davenport(bm)
+            rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
+            if gmin < 1e-16 * (lam - gmin):
+                flag = _NOT_UNIQUE
+            sens = sensitivity(bm, zeta, kappa, wsum / n)
+        flags[p] = flag
+        E.store4(q_out, p, q)
+        rssd_out[p] = rssd
+        for j in range(9):
+            sens_out[p, j // 3, j % 3] = sens[j]
+
+
+@rowloop
+def _rotation_between(u, v, out):
+    for i in prange(u.shape[0]):
+        E.store4(out, i, shortest_arc(E.load3(u, i), E.load3(v, i)))
+
+
+# --------------------------------------------------------------------------
+# public functions
+
+
+def _pairs(x, name):
+    """`x` as a float array of shape (..., n, 3); a single vector (3,) is one pair."""
+    a = as_float(x, name)
+    if a.ndim == 1 and a.shape == V:
+        a = a[None]
+    if a.ndim < 2 or a.shape[-1] != 3:
+        raise shape_error(name, "(..., n, 3)", a.shape)
+    return a
+
+
+def align_vectors(a, b, weights=None, return_sensitivity=False):
+    """The rotation q minimising Σ wᵢ‖aᵢ − rotate(q, bᵢ)‖², as scipy's
+    ``Rotation.align_vectors(a, b, weights)`` (a ≈ R b), for a batch of problems.
+
+    Davenport's q-method (equivalent to the Kabsch algorithm with scipy's
+    determinant correction) on B = Σ wᵢ aᵢ bᵢᵀ, accumulated in float64: the
+    result is always a proper rotation, never a reflection. scipy's special
+    rules hold:
+
+    - a single vector pair gives the shortest arc from b to a (see
+      :func:`rotation_between`);
+    - one infinite weight holds that pair exactly (shortest arc between the
+      two), and the other pairs fix the turn about it; its pair adds 0 to
+      `rssd` (unless it is the only pair).
+
+    More than one infinite weight in a problem, a zero vector in the primary
+    (infinite-weight or only) pair, or a negative weight raise ``ValueError``
+    naming the problem, as scipy does. When the optimum is not unique
+    (collinear vectors: s₁ + s₂ < 10⁻¹⁶ s₀ for B's singular values) one
+    ``UserWarning`` per call says how many problems are affected, as scipy
+    warns; the rotation returned is then one of the optimal ones (not
+    necessarily scipy's).
+
+    Parameters
+    ----------
+    a, b : array_like, shape (..., n, 3)
+        Vectors observed in frames A and B (pairs aᵢ, bᵢ); a single vector
+        ``(3,)`` is one pair. Leading dimensions broadcast; both must have the
+        same n.
+    weights : array_like, shape (..., n), optional
+        Non-negative weights (default 1); at most one ``inf`` per problem.
+        Cast to the result dtype; they broadcast with the leading dimensions.
+    return_sensitivity : bool, optional
+        Also return scipy's sensitivity matrix (not for single pairs or
+        infinite weights: ``ValueError``, as in scipy).
+
+    Returns
+    -------
+    q : ndarray, shape (..., 4)
+        Unit quaternions (w, x, y, z) with ``rotate(q, b) ≈ a``; the sign is
+        scipy's.
+    rssd : ndarray, shape (...)
+        sqrt(Σ wᵢ ‖aᵢ − rotate(q, bᵢ)‖²) at the optimum.
+    sensitivity : ndarray, shape (..., 3, 3)
+        Only with ``return_sensitivity=True``.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> a = [[0, 1, 0], [0, 1, 1], [0, 1, 1]]
+    >>> b = [[1, 0, 0], [1, 1.1, 0], [1, 0.9, 0]]
+    >>> q, rssd = qa.align_vectors(a, b)
+    >>> np.round(qa.as_matrix(q), 12) + 0.0
+    array([[0., 0., 1.],
+           [1., 0., 0.],
+           [0., 1., 0.]])
+    >>> round(float(rssd), 12)
+    0.141421356237
+
+    One pair gives the shortest arc; a batch of two problems:
+
+    >>> q, rssd = qa.align_vectors([1, 0, 0], [0, 1, 0])
+    >>> np.round(qa.as_rotvec(q), 12) + 0.0
+    array([ 0.        ,  0.        , -1.57079633])
+    >>> a = np.random.default_rng(0).standard_normal((2, 5, 3))  # 2 problems of 5 pairs
+    >>> q, rssd = qa.align_vectors(a, a)
+    >>> np.allclose(qa.distance(q, qa.identity()), 0), rssd.shape
+    (True, (2,))
+    """
+    av = _pairs(a, "a")
+    bv = _pairs(b, "b")
+    n = av.shape[-2]
+    if bv.shape[-2] != n:
+        raise ValueError(
+            f"Expected `a` and `b` to hold the same number of vectors, got shapes {av.shape} and {bv.shape}."
+        )
+    core = (n, 3)
+    dtype = result_dtype([av, bv])
+    if weights is None:
+        w = np.ones((n,), dtype)
+    else:
+        w = as_float(weights, "weights")
+        if w.ndim == 0:
+            w = w[None]
+        if w.shape[-1] != n:
+            raise shape_error("weights", f"(..., {n})", w.shape)
+        if np.any(w < 0):
+            raise ValueError("Expected `weights` to be non-negative; got a negative weight.")
+    status = []
+
+    def run(a2, b2, w2, q2, r2, s2):
+        flags = np.zeros(a2.shape[0], np.uint8)
+        _align(a2, b2, w2, q2, r2, s2, flags)
+        status.append(flags)
+
+    inputs = [(av, "a", core), (bv, "b", core), (w, "weights", (n,))]
+    q, rssd, sens = elementwise(run, inputs, [Q, (), (3, 3)], result=dtype)
+    flags = status[0]
+    lead = q.shape[:-1]
+    for bit, text in (
+        (_SEVERAL_INF, "Expected at most one infinite weight per problem; {} has several."),
+        (_ZERO_PRIMARY, "Cannot align zero length primary vectors; {} has one."),
+    ):
+        if (hit := np.flatnonzero(flags & bit)).size:
+            raise ValueError(text.format(where(hit[0], lead)))
+    if return_sensitivity and (hit := np.flatnonzero(flags & _FIXED)).size:
+        raise ValueError(
+            "Cannot return sensitivity matrix with an infinite weight or one vector pair; "
+            f"{where(hit[0], lead)} has one."
+        )
+    if (count := np.count_nonzero(flags & _NOT_UNIQUE)):
+        warnings.warn(
+            f"Optimal rotation is not uniquely or poorly defined for the given sets of vectors "
+            f"({count} of {flags.size} problems).",
+            UserWarning,
+            stacklevel=2,
+        )
+    return (q, rssd, sens) if return_sensitivity else (q, rssd)
+
+
+def rotation_between(u, v, out=None):
+    """The shortest-arc rotation taking the direction of `u` to that of `v`.
+
+    The same rotation as ``align_vectors(v, u)`` for one pair (scipy's rule):
+    the rotation by the angle θ between them about u × v. Antiparallel
+    vectors get a half turn about an axis perpendicular to v: with i the index
+    of v's smallest |component| (the first of equals) and v̂ = v/|v|, the axis
+    is (0, −v̂_z, v̂_y) for i = 0, (v̂_z, 0, −v̂_x) for i = 1 and
+    (−v̂_y, v̂_x, 0) for i = 2. Zero, inf or nan vectors give nan.
+    The lengths of `u` and `v` do not matter.
+
+    Parameters
+    ----------
+    u, v : array_like, shape (..., 3)
+        Leading dimensions broadcast.
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit quaternions (w, x, y, z) with w ≥ 0 (w = 0 for a half turn), so
+        that ``rotate(q, u)`` points along `v`.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> q = qa.rotation_between([1, 0, 0], [0, 2, 0])
+    >>> np.round(qa.rotate(q, [1, 0, 0]), 12) + 0.0
+    array([0., 1., 0.])
+    >>> np.round(qa.rotation_between([0, 0, 1], [0, 0, -1]), 12) + 0.0  # half turn about y
+    array([0., 0., 1., 0.])
+    """
+    return elementwise(_rotation_between, [(u, "u", V), (v, "v", V)], [Q], out)

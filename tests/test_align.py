@@ -1,0 +1,214 @@
+"""align_vectors and rotation_between against scipy's Rotation.align_vectors."""
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+import quatarray as qa
+
+Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
+
+
+def scipy_align(a, b, w=None, sens=False):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = Rotation.align_vectors(a, b, w, return_sensitivity=sens)
+    return (res[0].as_quat(scalar_first=True),) + tuple(res[1:])
+
+
+def check(a, b, w=None, atol=1e-10):
+    q, rssd = qa.align_vectors(a, b, w)
+    qs, rs = scipy_align(a, b, w)
+    assert qa.distance(q, qs) < atol
+    np.testing.assert_allclose(rssd, rs, atol=2e-7, rtol=1e-9)  # an exact fit: sqrt of a rounding-level ssd
+    return q
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 40])
+def test_random_weighted_noisy(rng, n):
+    for _ in range(20):
+        b = rng.standard_normal((n, 3))
+        q0 = qa.random(rng=rng)
+        a = qa.rotate(q0, b) + 0.1 * rng.standard_normal((n, 3))
+        w = rng.random(n) * 3
+        q, rssd, sens = qa.align_vectors(a, b, w, return_sensitivity=True)
+        qs, rs, ss = scipy_align(a, b, w, sens=True)
+        np.testing.assert_allclose(q, qs, atol=1e-12)  # scipy's sign too
+        np.testing.assert_allclose(rssd, rs, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(sens, ss, rtol=1e-8, atol=1e-10)
+
+
+def test_scipy_docstring_example():
+    a = [[0, 1, 0], [0, 1, 1], [0, 1, 1]]
+    b = [[1, 0, 0], [1, 1.1, 0], [1, 0.9, 0]]
+    q, rssd, sens = qa.align_vectors(a, b, return_sensitivity=True)
+    np.testing.assert_allclose(qa.as_matrix(q), [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(rssd, 0.141421356237308, atol=1e-12)
+    np.testing.assert_allclose(sens, [[0.2, 0, 0], [0, 1.5, 1], [0, 1, 1]], atol=1e-12)
+
+
+def test_no_reflection_issue_10444(rng):
+    x = np.array([[0.89299824, -0.44372674, 0.0752378], [0.60221789, -0.47564102, -0.6411702]])
+    y = np.array([[0.02386536, -0.82176463, 0.5693271], [-0.27654929, -0.95191427, -0.1318321]])
+    q, rssd = qa.align_vectors(x, y)
+    np.testing.assert_allclose(qa.rotate(q, y), x, atol=1e-6)
+    assert rssd < 1e-7
+    # mirrored sets: the best orthogonal map is a reflection; we return the best rotation
+    for _ in range(20):
+        b = rng.standard_normal((6, 3))
+        a = b * [1, 1, -1]
+        q = check(a, b)
+        assert np.linalg.det(qa.as_matrix(q)) > 0
+
+
+def test_one_pair_and_infinite_weight_issue_17542(rng):
+    # one pair: the shortest arc (scipy's special case)
+    for _ in range(50):
+        a, b = rng.standard_normal(3) * 3, rng.standard_normal(3)
+        q = check(a, b)
+        np.testing.assert_allclose(qa.rotate(q, b / np.linalg.norm(b)), a / np.linalg.norm(a), atol=1e-12)
+    # one infinite weight: that pair exactly, the rest about it
+    for n in (2, 3, 6):
+        for _ in range(20):
+            a, b = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
+            w = rng.random(n)
+            k = rng.integers(n)
+            w[k] = np.inf
+            q = check(a, b, w)
+            u = qa.rotate(q, b[k])
+            np.testing.assert_allclose(u / np.linalg.norm(u), a[k] / np.linalg.norm(a[k]), atol=1e-12)
+    # scipy's align-constrain example
+    q, rssd = qa.align_vectors([[0.0, 1, 0], [0, 1, 1]], [[1, 0, 0], [1, 2, 0]], weights=[np.inf, 1])
+    np.testing.assert_allclose(qa.as_matrix(q), [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-12)
+    assert abs(rssd - 1.0) < 1e-12
+
+
+def test_parallel_and_antiparallel():
+    for a, b in [([1.0, 0, 0], [0, 1, 0]), ([1, 0, 0], [1, 0, 0]), ([1, 0, 0], [-1, 0, 0]),
+                 ([0, 1, 0], [0, -1, 0]), ([0, 0, 1], [0, 0, -1]), ([1, 2, 3], [-2, -4, -6])]:
+        check(a, b, atol=1e-12)
+        check([a, [0.3, -0.1, 0.2]], [b, [0.1, 0.5, -0.3]], [np.inf, 1], atol=1e-12)
+    # near antiparallel: as the large finite weight
+    rs = qa.from_rotvec(qa.as_rotvec(qa.random(20, rng=0)) * 1e-4)
+    for dq in rs:
+        a = np.array([qa.rotate(dq, [1.0, 0, 0]), [0, 1, 0]])
+        b = np.array([[-1.0, 0, 0], [0, 1, 0]])
+        q1, _ = qa.align_vectors(a, b, [np.inf, 1])
+        q2, _ = qa.align_vectors(a, b, [1e10, 1])
+        assert qa.distance(q1, q2) < 1e-7
+        check(a, b, [np.inf, 1])
+
+
+def test_degenerate_sets():
+    # collinear: not unique; scipy warns, the rssd is the optimum and the fit is optimal
+    a = np.array([[1.0, 0, 0], [2, 0, 0], [-1, 0, 0]])
+    b = np.array([[0.0, 1, 0], [0, 2, 0], [0, -1, 0]])
+    with pytest.warns(UserWarning, match="not uniquely"):
+        q, rssd = qa.align_vectors(a, b)
+    np.testing.assert_allclose(rssd, scipy_align(a, b)[1], atol=1e-7)  # sqrt of a rounding-level ssd
+    np.testing.assert_allclose(qa.rotate(q, b), a, atol=1e-12)
+    # coplanar (rank 2): unique
+    a = np.array([[1.0, 0, 0], [0, 1, 0], [1, 1, 0]])
+    check(a, qa.rotate(qa.random(rng=3), a))
+    # all weights zero, zero vectors
+    check(np.ones((3, 3)), np.ones((3, 3)) * 2, np.zeros(3))
+    check(np.zeros((3, 3)), np.ones((3, 3)))
+
+
+def test_errors():
+    with pytest.raises(ValueError, match="at most one infinite"):
+        qa.align_vectors(np.ones((3, 3)), np.eye(3), [np.inf, np.inf, 1])
+    with pytest.raises(ValueError, match="zero length primary"):
+        qa.align_vectors([0, 0, 0], [1, 0, 0])
+    with pytest.raises(ValueError, match="sensitivity"):
+        qa.align_vectors([1, 0, 0], [0, 1, 0], return_sensitivity=True)
+    with pytest.raises(ValueError, match="non-negative"):
+        qa.align_vectors(np.eye(3), np.eye(3), [1, -1, 1])
+    with pytest.raises(ValueError, match=r"Expected `b` to have shape \(\.\.\., n, 3\)"):
+        qa.align_vectors(np.eye(3), np.ones((3, 2)))
+    with pytest.raises(ValueError, match="same number"):
+        qa.align_vectors(np.eye(3), np.eye(3)[:2])
+    with pytest.raises(ValueError, match=r"index \(1, 0\)"):
+        w = np.ones((2, 2, 3))
+        w[1, 0, :2] = np.inf
+        qa.align_vectors(np.ones((2, 2, 3, 3)), np.eye(3), w)
+
+
+def test_batch_broadcast_dtype(rng):
+    a = rng.standard_normal((4, 1, 7, 3))
+    b = rng.standard_normal((5, 7, 3))
+    w = rng.random(7)
+    q, rssd, sens = qa.align_vectors(a, b, w, return_sensitivity=True)
+    assert q.shape == (4, 5, 4) and rssd.shape == (4, 5) and sens.shape == (4, 5, 3, 3)
+    for i in range(4):
+        for j in range(5):
+            qs, rs = scipy_align(a[i, 0], b[j], w)
+            assert qa.distance(q[i, j], qs) < 1e-10
+            np.testing.assert_allclose(rssd[i, j], rs, rtol=1e-10)
+    q32, r32 = qa.align_vectors(a.astype(np.float32), b.astype(np.float32), w)
+    assert q32.dtype == r32.dtype == np.float32
+    assert np.all(qa.distance(q32.astype(float), q) < 1e-5)
+    assert qa.align_vectors(a.astype(np.float32), b)[0].dtype == np.float64
+    # read-only, strided input is left alone
+    ro = np.asfortranarray(a)
+    ro.flags.writeable = False
+    np.testing.assert_array_equal(qa.align_vectors(ro, b, w)[0], q)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(1, 5), st.just(3)),
+           elements=st.floats(-10, 10, width=32)),
+    st.integers(0, 2**32 - 1),
+    st.booleans(),
+)
+def test_batch_is_loop_of_single_calls(a, seed, inf):
+    rng = np.random.default_rng(seed)
+    b = a + rng.standard_normal(a.shape)
+    w = rng.random(a.shape[:-1]) + 0.1
+    if inf:
+        w[:, 0] = np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            q, rssd = qa.align_vectors(a, b, w)
+        except ValueError:  # a zero primary vector somewhere
+            return
+        for k in range(a.shape[0]):
+            qk, rk = qa.align_vectors(a[k], b[k], w[k])
+            np.testing.assert_array_equal(q[k], qk)
+            np.testing.assert_array_equal(rssd[k], rk)
+
+
+def test_rotation_between(rng):
+    u = rng.standard_normal((200, 3))
+    v = rng.standard_normal((200, 3)) * 5
+    q = qa.rotation_between(u, v)
+    np.testing.assert_allclose(qa.rotate(q, u / np.linalg.norm(u, axis=1, keepdims=True)),
+                               v / np.linalg.norm(v, axis=1, keepdims=True), atol=1e-12)
+    np.testing.assert_allclose(qa.angle(q), np.arccos(np.clip(
+        np.sum(u * v, 1) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1), -1, 1)), atol=1e-7)
+    assert np.all(q[:, 0] >= 0)
+    for i in range(20):
+        assert qa.distance(q[i], scipy_align(v[i], u[i])[0]) < 1e-12
+    # antiparallel: the documented axis, perpendicular to v
+    for v1, axis in [([0, 0, -1], [0, 1, 0]), ([1, 0, 0], [0, 0, -1]), ([0, 2, 0], [0, 0, 1]),
+                     ([1, 2, 3], [0, -3, 2])]:
+        v1 = np.array(v1, float)
+        q1 = qa.rotation_between(-v1, v1)
+        axis = np.array(axis) / np.linalg.norm(axis)
+        np.testing.assert_allclose(q1, np.r_[0, axis], atol=1e-15)
+    assert np.isnan(qa.rotation_between([0, 0, 0], [1, 0, 0])).all()
+    assert np.isnan(qa.rotation_between([1, 0, 0], [0, 0, 0])).all()
+    np.testing.assert_array_equal(qa.rotation_between([1, 0, 0], [3, 0, 0]), [1, 0, 0, 0])
+    # broadcasting, float32, out=
+    assert qa.rotation_between(u[:, None], v[None, :5]).shape == (200, 5, 4)
+    q32 = qa.rotation_between(u.astype(np.float32), v.astype(np.float32))
+    assert q32.dtype == np.float32 and np.all(qa.distance(q32.astype(float), q) < 1e-5)
+    out = np.empty((200, 4))
+    assert qa.rotation_between(u, v, out=out) is out
+    np.testing.assert_array_equal(out, q)
