@@ -89,7 +89,8 @@ class _Dispatcher(CPUDispatcher):
 def _njit(fn, **options):
     """``numba.njit(**_OPTIONS, **options)(fn)`` with the :class:`_Dispatcher` rule."""
     d = numba.njit(**_OPTIONS, **options)(fn)
-    d.__class__ = _Dispatcher  # the same object layout: only the call typing differs
+    if isinstance(d, CPUDispatcher):  # not the plain function of NUMBA_DISABLE_JIT=1
+        d.__class__ = _Dispatcher  # the same object layout: only the call typing differs
     return d
 
 
