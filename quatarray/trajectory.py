@@ -292,14 +292,22 @@ class Moments:
 
     @classmethod
     def of(cls, x, y):
-        """The moments of one batch of point pairs, shapes (n, 3)."""
+        """The moments of a batch of point pairs, shapes (n, 3).
+
+        Taken over blocks of :data:`MOMENT_BLOCK` pairs, merged in order (more accurate than one
+        sum, and what :class:`MomentsFeed` gives bit for bit, fed in pieces of any size).
+        """
         x, y = _c64(x), _c64(y)
-        n = x.shape[0]
-        if n == 0:
-            return cls()
+        m = cls()
+        for a in range(0, x.shape[0], MOMENT_BLOCK):
+            m = m.merge(cls._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+        return m
+
+    @classmethod
+    def _block(cls, x, y):
         mx, my, cyx = np.empty(3), np.empty(3), np.empty(9)
         sxx = _moments_kernel(x, y, mx, my, cyx)
-        return cls(n, mx, my, sxx, cyx.reshape(3, 3))
+        return cls(x.shape[0], mx, my, sxx, cyx.reshape(3, 3))
 
     def merge(self, other):
         """The moments of both batches together."""
@@ -347,6 +355,42 @@ def _moments_kernel(x, y, mx, my, cyx):
     cyx[0], cyx[1], cyx[2], cyx[3], cyx[4] = c00, c01, c02, c10, c11
     cyx[5], cyx[6], cyx[7], cyx[8] = c12, c20, c21, c22
     return sxx
+
+
+MOMENT_BLOCK = 1 << 16
+
+
+class MomentsFeed:
+    """:meth:`Moments.of` of point pairs that come in pieces of any size (a stream read in chunks):
+    the same numbers, bit for bit, as on all the pairs at once.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray.trajectory import Moments, MomentsFeed
+    >>> x = np.random.default_rng(0).normal(size=(1000, 3))
+    >>> feed = MomentsFeed()
+    >>> for a in range(0, 1000, 300):
+    ...     feed.add(x[a:a + 300], 2 * x[a:a + 300])
+    >>> bool(np.all(feed.moments().cyx == Moments.of(x, 2 * x).cyx))
+    True
+    """
+
+    def __init__(self):
+        self._done = Moments()
+        self._x, self._y = np.empty((0, 3)), np.empty((0, 3))
+
+    def add(self, x, y):
+        """Feed the next pairs, shapes (n, 3)."""
+        x, y = np.concatenate([self._x, x]), np.concatenate([self._y, y])
+        full = x.shape[0] - x.shape[0] % MOMENT_BLOCK
+        for a in range(0, full, MOMENT_BLOCK):
+            self._done = self._done.merge(Moments._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+        self._x, self._y = x[full:], y[full:]
+
+    def moments(self):
+        """The moments of all the pairs fed."""
+        return self._done.merge(Moments.of(self._x, self._y))
 
 
 class Alignment(NamedTuple):
@@ -450,7 +494,17 @@ def fit(ref, est, method="sim3", n_to_align=None):
     if method == "none":
         return IDENTITY
     k = slice(None) if n_to_align is None else slice(0, int(n_to_align))
-    a = umeyama(est.pos[k], ref.pos[k], with_scale=method != "se3")
+    return fit_moments(Moments.of(est.pos[k], ref.pos[k]), method)
+
+
+def fit_moments(moments, method="sim3"):
+    """:func:`fit` from the :class:`Moments` of the (estimate, reference) positions, e.g. merged
+    chunk by chunk."""
+    if method not in ALIGNMENTS:
+        raise ValueError(f"unknown alignment {method!r}; expected one of {ALIGNMENTS}")
+    if method == "none":
+        return IDENTITY
+    a = umeyama(moments, with_scale=method != "se3")
     return Alignment(IDENTITY.r, IDENTITY.q, IDENTITY.t, a.s) if method == "scale" else a
 
 
@@ -697,10 +751,16 @@ def rpe(ref, est, relation="trans", delta=1, delta_unit="frames", all_pairs=Fals
     """
     _relation(relation)
     i, j = pairs(est, delta, delta_unit, all_pairs, rel_delta_tol)
-    out = np.empty(i.size)
+    return rpe_of_pairs(ref, est, i, j, relation), i, j
+
+
+def rpe_of_pairs(ref, est, i, j, relation="trans"):
+    """The relative pose errors (see :func:`rpe`) of the given index pairs (i, j)."""
+    _relation(relation)
+    out = np.empty(np.size(i))
     _rpe_kernel(_CODES[relation], np.ascontiguousarray(i, np.int64), np.ascontiguousarray(j, np.int64),
                 _c64(ref.pos), _c64(ref.q), _c64(est.pos), _c64(est.q), out)
-    return out, i, j
+    return out
 
 
 def _as_slice(idx):
@@ -725,10 +785,10 @@ def statistics(errors):
     e = np.asarray(errors, dtype=np.float64)
     if e.size == 0:
         raise ValueError("no errors to summarise")
-    sq = e * e
+    sse = float(np.sum(e * e))  # one temporary at a time: 8 bytes an error besides the errors
     return {
-        "rmse": float(np.sqrt(np.mean(sq))), "mean": float(np.mean(e)), "median": float(np.median(e)),
-        "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e)), "sse": float(np.sum(sq)),
+        "rmse": float(np.sqrt(sse / e.size)), "mean": float(np.mean(e)), "median": float(np.median(e)),
+        "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e)), "sse": sse,
     }
 
 
