@@ -214,6 +214,7 @@ def _blocks(ref_f, est_f, chunk, t_max_diff, t_offset):
                 b = min(a + chunk, ref_f.rows)
                 r, e = ref_f.block(a, b), est_f.block(a, b)
                 yield r.replace(t=None), e.replace(t=None)
+        by_row.most = ref_f.rows  # pairs at the most
         return by_row
     # as associate: the pairs follow the shorter stream (the estimate when equal)
     outer, inner, off = (ref_f, est_f, t_offset) if est_f.rows > ref_f.rows else (est_f, ref_f, -t_offset)
@@ -239,15 +240,18 @@ def _blocks(ref_f, est_f, chunk, t_max_diff, t_offset):
         if not found:
             raise ValueError(f"no matching times between the reference and the estimate with "
                              f"t_max_diff {t_max_diff} s and t_offset {t_offset} s")
+    by_time.most = outer.rows
     return by_time
 
 
 def run_chunked(ref_f, est_f, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
-                t_offset, chunk, out=None):
+                t_offset, chunk, out=None, keep_errors=True):
     """:func:`trajectory.evaluate` of two :class:`PoseFile` streams, a block at a time.
 
     Equal to the in-memory evaluation (APE; RPE with a delta in frames). Errors go to `out`
-    (as :func:`write_errors` writes them) block by block.
+    (as :func:`write_errors` writes them) block by block. Memory: a few blocks, and the errors
+    (8 bytes a pair, for the median); with `keep_errors` False their statistics are taken in
+    place (no copy), and the errors returned are in no particular order.
 
     Returns
     -------
@@ -270,15 +274,16 @@ def run_chunked(ref_f, est_f, metric, align, relation, delta, all_pairs, n_to_al
             n += len(r)
         a = T.fit_moments(feed.moments(), align)
     if out is None:
-        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, None)
+        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, None)
     w, errors_only = error_writer(out, metric, ref_f.has_t)
     with w:
-        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs,
+        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors,
                                lambda cols, t: _write_rows(w, errors_only, cols, t))
 
 
-def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, write):
-    errors, n = [], 0  # n: the associated poses before this block
+def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, write):
+    # the errors, in one buffer of the most there can be (pages never written are never resident)
+    errors, m, n = np.empty(blocks.most), 0, 0  # m errors so far, n: associated poses before this block
     carry = None  # RPE: the last `delta` associated poses (ref, est), first poses of the next pairs
     for r, e in blocks():
         e, size = T._moved(e, a), len(r)
@@ -297,14 +302,15 @@ def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, write):
             keep = slice(max(len(r) - delta, 0), None)
             carry = (r.take(keep), e.take(keep))
         n += size
-        errors.append(err)
+        errors[m:m + err.size] = err
+        m += err.size
         if write is not None and err.size:
             write(cols, t)
-    errors = np.concatenate(errors)
-    if errors.size == 0:
+    errors = errors[:m]
+    if m == 0:
         raise ValueError(f"delta = {delta} (frames) gives no pair among {n} poses; try a smaller delta")
-    return T.Result(T.statistics(errors), errors, None, None, None, None, None, a, metric, relation,
-                    T.UNITS[relation])
+    stats = T.statistics(errors.copy() if keep_errors else errors, overwrite_input=True)
+    return T.Result(stats, errors, None, None, None, None, None, a, metric, relation, T.UNITS[relation])
 
 
 def _joined(p, q):
@@ -459,7 +465,7 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
     try:
         if None not in files and plot_path is None and not interpolate and (metric == "ape" or delta_unit == "frames"):
             result = run_chunked(*files, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
-                                 t_offset, chunk or DEFAULT_CHUNK, out)
+                                 t_offset, chunk or DEFAULT_CHUNK, out, keep_errors=False)
         if result is None:
             ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
                                   on_invalid=on_invalid)

@@ -772,8 +772,11 @@ def _as_slice(idx):
     return idx
 
 
-def statistics(errors):
+def statistics(errors, overwrite_input=False):
     """evo's statistics of per-pose errors: rmse, mean, median, std, min, max, sse.
+
+    No temporary as large as `errors` is made (std is merged over blocks, Chan's update), except
+    the median's copy, which `overwrite_input` saves (`errors` is then reordered).
 
     Examples
     --------
@@ -785,11 +788,22 @@ def statistics(errors):
     e = np.asarray(errors, dtype=np.float64)
     if e.size == 0:
         raise ValueError("no errors to summarise")
-    sse = float(np.sum(e * e))  # one temporary at a time: 8 bytes an error besides the errors
-    return {
-        "rmse": float(np.sqrt(sse / e.size)), "mean": float(np.mean(e)), "median": float(np.median(e)),
-        "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e)), "sse": sse,
-    }
+    n = e.size
+    sse = float(np.dot(e, e))
+    mean = float(np.mean(e))
+    count, mu, m2 = 0, 0.0, 0.0  # std: blocks' (count, mean, Σ(x − mean)²) merged
+    for a in range(0, n, MOMENT_BLOCK):
+        b = e[a:a + MOMENT_BLOCK]
+        mb = float(np.mean(b))
+        d = b - mb
+        k = count + b.size
+        m2 += float(np.dot(d, d)) + (mb - mu) ** 2 * count * b.size / k
+        mu += (mb - mu) * b.size / k
+        count = k
+    out = {"rmse": float(np.sqrt(sse / n)), "mean": mean, "median": 0.0, "std": float(np.sqrt(m2 / n)),
+           "min": float(np.min(e)), "max": float(np.max(e)), "sse": sse}
+    out["median"] = float(np.median(e, overwrite_input=overwrite_input))
+    return out
 
 
 @dataclass
