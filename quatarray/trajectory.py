@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel
+from ._jit import inline, kernel, prange, rowloop
 
 RELATIONS = ("trans", "rot", "full")
 ALIGNMENTS = ("none", "se3", "sim3", "scale")
@@ -416,12 +416,12 @@ def _c64(a):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-@kernel
+@rowloop(rows=3)
 def _apply_kernel(aq, s, t, pos, q, out_pos, out_q):
     # s R x + t (R from its quaternion once, as qa.rotate does for one rotation) and aq ∘ q
     a = (aq[0], aq[1], aq[2], aq[3])
     m = E.qmatrix(a)
-    for i in range(pos.shape[0]):
+    for i in prange(pos.shape[0]):
         x, y, z = E.load3(pos, i)
         out_pos[i, 0] = (m[0] * x + m[1] * y + m[2] * z) * s + t[0]
         out_pos[i, 1] = (m[3] * x + m[4] * y + m[5] * z) * s + t[1]
@@ -557,9 +557,9 @@ def _error(code, dx, dy, dz, qa_, qb):
     return np.sqrt(8.0 * half * half + d2)
 
 
-@kernel
+@rowloop(rows=1)
 def _ape_kernel(code, ref_pos, ref_q, est_pos, est_q, out):
-    for i in range(out.shape[0]):
+    for i in prange(out.shape[0]):
         r, e = E.load3(ref_pos, i), E.load3(est_pos, i)
         out[i] = _error(code, e[0] - r[0], e[1] - r[1], e[2] - r[2], E.load4(est_q, i), E.load4(ref_q, i))
 
@@ -572,9 +572,9 @@ def _relative(pos, q, i, j):
     return E.qmul(qi, E.load4(q, j)), E.qrotate(qi, (xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]))
 
 
-@kernel
+@rowloop(rows=1)
 def _rpe_kernel(code, i, j, ref_pos, ref_q, est_pos, est_q, out):
-    for k in range(out.shape[0]):
+    for k in prange(out.shape[0]):
         q_ref, t_ref = _relative(ref_pos, ref_q, i[k], j[k])
         q_est, t_est = _relative(est_pos, est_q, i[k], j[k])
         out[k] = _error(code, t_est[0] - t_ref[0], t_est[1] - t_ref[1], t_est[2] - t_ref[2], q_ref, q_est)
@@ -888,5 +888,5 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
         index, i0 = np.arange(errors.size), None
     else:
         errors, i0, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
-    t = None if ref.t is None else ref.t[index]
+    t = None if ref.t is None else ref.t[_as_slice(index)]  # APE, RPE in frames: a view
     return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])
