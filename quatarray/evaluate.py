@@ -225,8 +225,8 @@ def _blocks(ref_f, est_f, chunk, t_max_diff, t_offset):
         found = False
         for a in range(0, outer.rows, chunk):
             o = outer.block(a, min(a + chunk, outer.rows))
-            # the window of inner rows these times can reach, with one row to spare on each side
-            # (so match_times sees the same neighbours as on the whole stream)
+            # the window of inner rows these times can reach (a little slack for rounding), and one
+            # row more on each side: match_times then sees the neighbours it sees on the whole stream
             slack = t_max_diff + 1e-9 * (1.0 + abs(float(o.t[0])))
             wa = max(inner.bisect(float(o.t.min()) - slack, off, right=False) - 1, 0)
             wb = min(inner.bisect(float(o.t.max()) + slack, off, right=True) + 1, inner.rows)
@@ -257,7 +257,7 @@ def run_chunked(ref_f, est_f, metric, align, relation, delta, all_pairs, n_to_al
     -------
     Result or None
         A :class:`~quatarray.trajectory.Result` without poses, index or times (those went to
-        `writer`), or None when the streams must be read whole (times not sorted).
+        `out`), or None when the streams must be read whole (times not sorted).
     """
     blocks = _blocks(ref_f, est_f, chunk, t_max_diff, t_offset)
     if blocks is None:
@@ -286,7 +286,7 @@ def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, 
     errors, m, n = np.empty(blocks.most), 0, 0  # m errors so far, n: associated poses before this block
     carry = None  # RPE: the last `delta` associated poses (ref, est), first poses of the next pairs
     for r, e in blocks():
-        e, size = T._moved(e, a), len(r)
+        e, size = (e if a is T.IDENTITY else a.apply(e)), len(r)
         if metric == "ape":
             err = T.ape(r, e, relation)
             cols, t = [np.arange(n, n + size), err], r.t
@@ -463,7 +463,8 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
     result = None
     files = [PoseFile.open(p) for p in (ref_path, est_path)] if fmt in ("auto", "npy") else [None]
     try:
-        if None not in files and plot_path is None and not interpolate and (metric == "ape" or delta_unit == "frames"):
+        chunked = metric == "ape" or delta_unit == "frames"
+        if None not in files and chunked and plot_path is None and not interpolate:
             result = run_chunked(*files, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
                                  t_offset, chunk or DEFAULT_CHUNK, out, keep_errors=False)
         if result is None:
