@@ -6,8 +6,16 @@ csv/parquet with columns ``t x y z qw qx qy qz``), and pose arrays:
 ``.npy`` / ``.zarr`` pose arrays
     float arrays of shape ``(N, 8)``: ``t x y z qw qx qy qz`` a row, or
     ``(N, 7)``: ``x y z qw qx qy qz`` (no times: compared pose by pose).
-    These are read whole (memory-mapped, then copied); chunked evaluation of
-    streams larger than memory is not implemented yet.
+    When both inputs are pose arrays they are evaluated in chunks of
+    ``chunk`` rows (:func:`run_chunked`), so streams larger than memory work:
+    one pass for the alignment's :class:`~quatarray.trajectory.Moments`, one
+    for the errors, each block of the shorter stream associated with the
+    window of the other that its times can reach (found by bisection on the
+    other's times column, read a value at a time), errors written to ``out``
+    block by block. Only the errors are held (8 bytes a pair, for the
+    median). APE, and RPE with a delta in frames, run this way; ``--plot``,
+    ``--interpolate``, RPE in metres or seconds and unsorted times read the
+    streams whole.
 
 The job prints the statistics, and on request writes them as JSON
 (``json_path``), the per-pose errors with their times (``out``: csv or parquet
@@ -22,7 +30,7 @@ import sys
 import numpy as np
 
 from . import trajectory as T
-from .io import Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer
+from .io import DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer
 
 TITLES = {"trans": "translation part", "rot": "rotation angle", "full": "full transformation"}
 ALIGN_TITLES = {"none": "not aligned", "se3": "SE(3) Umeyama alignment", "sim3": "Sim(3) Umeyama alignment",
@@ -124,6 +132,192 @@ def _read_both(ref_path, est_path, err, **kw):
     return ref, est
 
 
+class PoseFile:
+    """A pose array (npy or zarr, see :func:`pose_array`) read a block of rows at a time.
+
+    An npy block is a memory map of those rows alone, dropped once copied, so
+    resident memory stays bounded by the block whatever the file's size.
+    """
+
+    def __init__(self, path, arr):
+        self.path, self.rows, self.width = path, int(arr.shape[0]), int(arr.shape[1])
+        self.has_t = self.width == 8
+        self.dtype = np.dtype(arr.dtype)
+        self.npy = isinstance(arr, np.memmap)
+        self.offset = arr.offset if self.npy else None
+        self.arr = None if self.npy else arr
+
+    @classmethod
+    def open(cls, path):
+        """A PoseFile for `path`, or None when it is no pose array that can be read in blocks."""
+        arr = pose_array(path)
+        if arr is None or (isinstance(arr, np.memmap) and not arr.flags.c_contiguous):
+            return None
+        return cls(path, arr)
+
+    def _raw(self, a, b):
+        if not self.npy:
+            return np.asarray(self.arr[a:b])
+        row = self.width * self.dtype.itemsize
+        m = np.memmap(self.path, self.dtype, "r", offset=self.offset + a * row, shape=(b - a, self.width))
+        try:
+            return np.array(m, dtype=np.float64)
+        finally:
+            del m
+
+    def block(self, a, b):
+        """Rows a to b as checked :class:`~quatarray.trajectory.Poses`."""
+        return _poses_of_rows(self._raw(a, b), self.path, a)
+
+    def time(self, k):
+        """The time of row k."""
+        return float(self._raw(k, k + 1)[0, 0]) if self.npy else float(self.arr[k, 0])
+
+    def times(self, a, b):
+        """The times of rows a to b."""
+        return np.ascontiguousarray(self._raw(a, b)[:, 0])
+
+    def bisect(self, x, off, right):
+        """The first row whose time + `off` is above `x` (`right`) or not below it."""
+        lo, hi = 0, self.rows
+        while lo < hi:
+            mid = (lo + hi) // 2
+            v = self.time(mid) + off
+            if v <= x if right else v < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo
+
+    def sorted(self, chunk):
+        """Whether the times never decrease (read block by block)."""
+        last = -np.inf
+        for a in range(0, self.rows, chunk):
+            t = self.times(a, min(a + chunk, self.rows))
+            if t[0] < last or np.any(np.diff(t) < 0):
+                return False
+            last = t[-1]
+        return True
+
+
+def _blocks(ref_f, est_f, chunk, t_max_diff, t_offset):
+    """The associated pairs, block by block: (ref Poses, est Poses) as :func:`trajectory.associate`
+    gives them for the whole streams (the pairs in the same order), or None when the times do
+    not allow it (the inner stream's times not sorted)."""
+    if not (ref_f.has_t and est_f.has_t):
+        if ref_f.rows != est_f.rows:
+            raise ValueError(f"streams without times are compared pose by pose: the reference has "
+                             f"{ref_f.rows} poses, the estimate {est_f.rows}")
+
+        def by_row():
+            for a in range(0, ref_f.rows, chunk):
+                b = min(a + chunk, ref_f.rows)
+                r, e = ref_f.block(a, b), est_f.block(a, b)
+                yield r.replace(t=None), e.replace(t=None)
+        by_row.most = ref_f.rows  # pairs at the most
+        return by_row
+    # as associate: the pairs follow the shorter stream (the estimate when equal)
+    outer, inner, off = (ref_f, est_f, t_offset) if est_f.rows > ref_f.rows else (est_f, ref_f, -t_offset)
+    if not inner.sorted(chunk):
+        return None
+
+    def by_time():
+        found = False
+        for a in range(0, outer.rows, chunk):
+            o = outer.block(a, min(a + chunk, outer.rows))
+            # the window of inner rows these times can reach (a little slack for rounding), and one
+            # row more on each side: match_times then sees the neighbours it sees on the whole stream
+            slack = t_max_diff + 1e-9 * (1.0 + abs(float(o.t[0])))
+            wa = max(inner.bisect(float(o.t.min()) - slack, off, right=False) - 1, 0)
+            wb = min(inner.bisect(float(o.t.max()) + slack, off, right=True) + 1, inner.rows)
+            w = inner.block(wa, wb)
+            i_o, i_w = T.match_times(o.t, w.t, t_max_diff, off)
+            if i_o.size == 0:
+                continue
+            found = True
+            o, w = o.take(i_o), w.take(i_w)
+            yield (w, o) if outer is est_f else (o, w)
+        if not found:
+            raise ValueError(f"no matching times between the reference and the estimate with "
+                             f"t_max_diff {t_max_diff} s and t_offset {t_offset} s")
+    by_time.most = outer.rows
+    return by_time
+
+
+def run_chunked(ref_f, est_f, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
+                t_offset, chunk, out=None, keep_errors=True):
+    """:func:`trajectory.evaluate` of two :class:`PoseFile` streams, a block at a time.
+
+    Equal to the in-memory evaluation (APE; RPE with a delta in frames). Errors go to `out`
+    (as :func:`write_errors` writes them) block by block. Memory: a few blocks, and the errors
+    (8 bytes a pair, for the median); with `keep_errors` False their statistics are taken in
+    place (no copy), and the errors returned are in no particular order.
+
+    Returns
+    -------
+    Result or None
+        A :class:`~quatarray.trajectory.Result` without poses, index or times (those went to
+        `out`), or None when the streams must be read whole (times not sorted).
+    """
+    blocks = _blocks(ref_f, est_f, chunk, t_max_diff, t_offset)
+    if blocks is None:
+        return None
+    n = 0
+    a = T.IDENTITY
+    if align != "none":
+        feed = T.MomentsFeed()
+        for r, e in blocks():
+            k = len(r) if n_to_align is None else max(min(len(r), int(n_to_align) - n), 0)
+            if k == 0 and n_to_align is not None:
+                break
+            feed.add(e.pos[:k], r.pos[:k])
+            n += len(r)
+        a = T.fit_moments(feed.moments(), align)
+    if out is None:
+        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, None)
+    w, errors_only = error_writer(out, metric, ref_f.has_t)
+    with w:
+        return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors,
+                               lambda cols, t: _write_rows(w, errors_only, cols, t))
+
+
+def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, write):
+    # the errors, in one buffer of the most there can be (pages never written are never resident)
+    errors, m, n = np.empty(blocks.most), 0, 0  # m errors so far, n: associated poses before this block
+    carry = None  # RPE: the last `delta` associated poses (ref, est), first poses of the next pairs
+    for r, e in blocks():
+        e, size = (e if a is T.IDENTITY else a.apply(e)), len(r)
+        if metric == "ape":
+            err = T.ape(r, e, relation)
+            cols, t = [np.arange(n, n + size), err], r.t
+        else:
+            if carry is not None:
+                r, e = _joined(carry[0], r), _joined(carry[1], e)
+            g = n + size - len(r)  # the associated index of the buffer's first pose
+            j = np.arange(max(n, g + delta), n + size)
+            if not all_pairs:
+                j = j[j % delta == 0]
+            err = T.rpe_of_pairs(r, e, j - g - delta, j - g, relation)
+            cols, t = [j - delta, j, err], None if r.t is None else r.t[j - g]
+            keep = slice(max(len(r) - delta, 0), None)
+            carry = (r.take(keep), e.take(keep))
+        n += size
+        errors[m:m + err.size] = err
+        m += err.size
+        if write is not None and err.size:
+            write(cols, t)
+    errors = errors[:m]
+    if m == 0:
+        raise ValueError(f"delta = {delta} (frames) gives no pair among {n} poses; try a smaller delta")
+    stats = T.statistics(errors.copy() if keep_errors else errors, overwrite_input=True)
+    return T.Result(stats, errors, None, None, None, None, None, a, metric, relation, T.UNITS[relation])
+
+
+def _joined(p, q):
+    return T.Poses(None if p.t is None else np.concatenate([p.t, q.t]), np.concatenate([p.pos, q.pos]),
+                   np.concatenate([p.q, q.q]))
+
+
 # --------------------------------------------------------------------------
 # reporting
 
@@ -158,20 +352,34 @@ def as_json(result, head, ref_name, est_name, options):
     }
 
 
-def write_errors(path, result):
-    """Per-pose errors (with reference times when there are) to csv, parquet (or npy: errors only)."""
-    fields = (["pose0"] if result.metric == "rpe" else []) + ["pose", "error"]
-    data = [result.index.astype(np.float64), result.errors]
-    if result.metric == "rpe":
-        data.insert(0, result.i0.astype(np.float64))
+def error_writer(path, metric, timed):
+    """An open writer for per-pose errors, and whether it takes the errors alone (npy).
+
+    csv and parquet get columns ``t`` (when `timed`), ``pose`` (RPE: ``pose0``, ``pose``) and
+    ``error``; npy the errors alone.
+    """
     from .io.formats import output_format
 
     if output_format(path) == "npy":
-        with open_writer(path, ["error"]) as w:
-            w.write(result.errors[:, None])
-        return
-    with open_writer(path, fields, time=result.t is not None) as w:
-        w.write(np.column_stack(data), result.t)
+        return open_writer(path, ["error"]), True
+    fields = (["pose0"] if metric == "rpe" else []) + ["pose", "error"]
+    return open_writer(path, fields, time=timed), False
+
+
+def _write_rows(writer, errors_only, cols, t):
+    """One block of errors (`cols`: [pose0,] pose, error) to a writer of :func:`error_writer`."""
+    if errors_only:
+        writer.write(np.ascontiguousarray(cols[-1], np.float64)[:, None])
+    else:
+        writer.write(np.column_stack([np.asarray(c, np.float64) for c in cols]), t)
+
+
+def write_errors(path, result):
+    """Per-pose errors (with reference times when there are) to csv, parquet (or npy: errors only)."""
+    cols = ([result.i0] if result.metric == "rpe" else []) + [result.index, result.errors]
+    w, errors_only = error_writer(path, result.metric, result.t is not None)
+    with w:
+        _write_rows(w, errors_only, cols, result.t)
 
 
 def plot(path, result, ref_name, est_name):
@@ -252,14 +460,21 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
     options = dict(metric=metric, align=align, relation=relation, delta=delta, delta_unit=delta_unit,
                    all_pairs=all_pairs, n_to_align=n_to_align, t_max_diff=t_max_diff, t_offset=t_offset,
                    interpolate=interpolate)
-    ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
-                          on_invalid=on_invalid)
+    result = None
+    files = [PoseFile.open(p) for p in (ref_path, est_path)] if fmt in ("auto", "npy") else [None]
     try:
-        result = T.evaluate(ref, est, **options)
+        chunked = metric == "ape" or delta_unit == "frames"
+        if None not in files and chunked and plot_path is None and not interpolate:
+            result = run_chunked(*files, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
+                                 t_offset, chunk or DEFAULT_CHUNK, out, keep_errors=False)
+        if result is None:
+            ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
+                                  on_invalid=on_invalid)
+            result = T.evaluate(ref, est, **options)
+            if out is not None:
+                write_errors(out, result)
     except ValueError as exc:
         raise DataError(f"{est_path} against {ref_path}: {str(exc).splitlines()[0]}") from None
-    if out is not None:
-        write_errors(out, result)
     if plot_path is not None:
         plot(plot_path, result, ref_path, est_path)
     head = title(result, align, n_to_align, delta, delta_unit, all_pairs)

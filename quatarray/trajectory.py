@@ -34,7 +34,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._jit import kernel
+from . import _elements as E
+from ._jit import inline, kernel, prange, rowloop
 
 RELATIONS = ("trans", "rot", "full")
 ALIGNMENTS = ("none", "se3", "sim3", "scale")
@@ -114,20 +115,15 @@ def match_times(stamps_1, stamps_2, max_diff=0.01, offset_2=0.0):
     >>> match_times([0.0, 1.0, 2.0, 3.0], [0.004, 2.0, 2.0, 2.5], max_diff=0.01)
     (array([0, 2]), array([0, 2]))
     """
-    s1 = np.asarray(stamps_1, dtype=np.float64)
-    s2 = np.asarray(stamps_2, dtype=np.float64) + offset_2
+    s1 = _c64(stamps_1).reshape(-1)
+    s2 = _c64(stamps_2).reshape(-1)
     if s2.size == 0 or s1.size == 0:
         return np.zeros(0, np.intp), np.zeros(0, np.intp)
-    if np.all(np.diff(s2) >= 0):
-        inside = (s1 >= s2[0] - max_diff) & (s1 <= s2[-1] + max_diff)
-        idx = np.minimum(np.searchsorted(s2, s1, side="right"), s2.size - 1)
-        diff_ub = s2[idx] - s1
-        diff_lb = np.where(idx > 0, s1 - s2[np.maximum(idx - 1, 0)], np.inf)
-        up = (diff_ub <= max_diff) & (diff_ub < diff_lb)
-        lo = ~up & (diff_lb <= max_diff) & (diff_lb <= diff_ub)
-        keep = inside & (up | lo)
-        best = np.where(up, idx, idx - 1)
-        return np.flatnonzero(keep), best[keep]
+    i1, i2 = np.empty(s1.size, np.intp), np.empty(s1.size, np.intp)
+    m = _match_sorted(s1, s2, float(offset_2), float(max_diff), i1, i2)
+    if m >= 0:
+        return i1[:m], i2[:m]
+    s2 = s2 + offset_2
     # Unsorted: the first index (in file order) of the smallest |s2 - s1|. In a
     # stable sort the first of equal times is that index; compare both neighbours.
     order = np.argsort(s2, kind="stable")
@@ -144,6 +140,47 @@ def match_times(stamps_1, stamps_2, max_diff=0.01, offset_2=0.0):
     d = np.where(take_lo, d_lo, d_hi)
     keep = d <= max_diff
     return np.flatnonzero(keep), best[keep]
+
+
+@kernel
+def _match_sorted(s1, s2, off, max_diff, i1, i2):
+    # match_times for non-decreasing s2 (times s2 + off): per time of s1 the upper and lower
+    # neighbours of a right bisection, found by galloping on from the previous one while s1
+    # increases. Returns the number of matches, or -1 when s2 is not sorted (nothing written).
+    n = s2.shape[0]
+    for k in range(1, n):
+        if s2[k] + off < s2[k - 1] + off:
+            return -1
+    first, last = s2[0] + off, s2[n - 1] + off
+    m = 0
+    lo = 0  # every s2[< lo] + off <= x
+    for k in range(s1.shape[0]):
+        x = s1[k]
+        if k == 0 or x < s1[k - 1]:
+            lo = 0
+        step = 1
+        while lo + step <= n and s2[lo + step - 1] + off <= x:
+            lo += step
+            step *= 2
+        hi = min(lo + step, n)  # s2[hi - 1] + off > x, or hi == n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if s2[mid] + off <= x:
+                lo = mid + 1
+            else:
+                hi = mid
+        idx = min(lo, n - 1)
+        if not (x >= first - max_diff and x <= last + max_diff):
+            continue
+        diff_ub = (s2[idx] + off) - x
+        diff_lb = x - (s2[idx - 1] + off) if idx > 0 else np.inf
+        if diff_ub <= max_diff and diff_ub < diff_lb:
+            i1[m], i2[m] = k, idx
+            m += 1
+        elif diff_lb <= max_diff and diff_lb <= diff_ub:
+            i1[m], i2[m] = k, idx - 1
+            m += 1
+    return m
 
 
 def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
@@ -255,15 +292,22 @@ class Moments:
 
     @classmethod
     def of(cls, x, y):
-        """The moments of one batch of point pairs, shapes (n, 3)."""
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        n = x.shape[0]
-        if n == 0:
-            return cls()
-        mx, my = x.mean(axis=0), y.mean(axis=0)
-        dx, dy = x - mx, y - my
-        return cls(n, mx, my, float(np.einsum("ij,ij->", dx, dx)), dy.T @ dx)
+        """The moments of a batch of point pairs, shapes (n, 3).
+
+        Taken over blocks of :data:`MOMENT_BLOCK` pairs, merged in order (more accurate than one
+        sum, and what :class:`MomentsFeed` gives bit for bit, fed in pieces of any size).
+        """
+        x, y = _c64(x), _c64(y)
+        m = cls()
+        for a in range(0, x.shape[0], MOMENT_BLOCK):
+            m = m.merge(cls._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+        return m
+
+    @classmethod
+    def _block(cls, x, y):
+        mx, my, cyx = np.empty(3), np.empty(3), np.empty(9)
+        sxx = _moments_kernel(x, y, mx, my, cyx)
+        return cls(x.shape[0], mx, my, sxx, cyx.reshape(3, 3))
 
     def merge(self, other):
         """The moments of both batches together."""
@@ -280,6 +324,75 @@ class Moments:
         )
 
 
+@kernel
+def _moments_kernel(x, y, mx, my, cyx):
+    # two passes: the means, then the sums about them (writes mx, my, cyx (flat, 9); returns sxx)
+    n = x.shape[0]
+    sx0 = sx1 = sx2 = sy0 = sy1 = sy2 = 0.0
+    for i in range(n):
+        sx0 += x[i, 0]
+        sx1 += x[i, 1]
+        sx2 += x[i, 2]
+        sy0 += y[i, 0]
+        sy1 += y[i, 1]
+        sy2 += y[i, 2]
+    mx0, mx1, mx2, my0, my1, my2 = sx0 / n, sx1 / n, sx2 / n, sy0 / n, sy1 / n, sy2 / n
+    sxx = c00 = c01 = c02 = c10 = c11 = c12 = c20 = c21 = c22 = 0.0
+    for i in range(n):
+        a0, a1, a2 = x[i, 0] - mx0, x[i, 1] - mx1, x[i, 2] - mx2
+        b0, b1, b2 = y[i, 0] - my0, y[i, 1] - my1, y[i, 2] - my2
+        sxx += a0 * a0 + a1 * a1 + a2 * a2
+        c00 += b0 * a0
+        c01 += b0 * a1
+        c02 += b0 * a2
+        c10 += b1 * a0
+        c11 += b1 * a1
+        c12 += b1 * a2
+        c20 += b2 * a0
+        c21 += b2 * a1
+        c22 += b2 * a2
+    mx[0], mx[1], mx[2], my[0], my[1], my[2] = mx0, mx1, mx2, my0, my1, my2
+    cyx[0], cyx[1], cyx[2], cyx[3], cyx[4] = c00, c01, c02, c10, c11
+    cyx[5], cyx[6], cyx[7], cyx[8] = c12, c20, c21, c22
+    return sxx
+
+
+MOMENT_BLOCK = 1 << 16
+
+
+class MomentsFeed:
+    """:meth:`Moments.of` of point pairs that come in pieces of any size (a stream read in chunks):
+    the same numbers, bit for bit, as on all the pairs at once.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray.trajectory import Moments, MomentsFeed
+    >>> x = np.random.default_rng(0).normal(size=(1000, 3))
+    >>> feed = MomentsFeed()
+    >>> for a in range(0, 1000, 300):
+    ...     feed.add(x[a:a + 300], 2 * x[a:a + 300])
+    >>> bool(np.all(feed.moments().cyx == Moments.of(x, 2 * x).cyx))
+    True
+    """
+
+    def __init__(self):
+        self._done = Moments()
+        self._x, self._y = np.empty((0, 3)), np.empty((0, 3))
+
+    def add(self, x, y):
+        """Feed the next pairs, shapes (n, 3)."""
+        x, y = np.concatenate([self._x, x]), np.concatenate([self._y, y])
+        full = x.shape[0] - x.shape[0] % MOMENT_BLOCK
+        for a in range(0, full, MOMENT_BLOCK):
+            self._done = self._done.merge(Moments._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+        self._x, self._y = x[full:], y[full:]
+
+    def moments(self):
+        """The moments of all the pairs fed."""
+        return self._done.merge(Moments.of(self._x, self._y))
+
+
 class Alignment(NamedTuple):
     """A similarity y = s R x + t: rotation as matrix and quaternion, translation, scale."""
 
@@ -290,10 +403,30 @@ class Alignment(NamedTuple):
 
     def apply(self, p):
         """The poses `p` moved by this transform (positions s R x + t, rotations R ∘ q)."""
-        import quatarray as qa
+        pos, q = _c64(p.pos), _c64(p.q)
+        out_pos, out_q = np.empty_like(pos), np.empty_like(q)
+        _apply_kernel(np.asarray(self.q, np.float64), float(self.s), np.asarray(self.t, np.float64),
+                      pos, q, out_pos, out_q)
+        return Poses(p.t, out_pos, out_q)
 
-        q = np.broadcast_to(self.q, p.q.shape)
-        return Poses(p.t, qa.rotate(q, p.pos) * self.s + self.t, qa.multiply(q, p.q))
+
+def _c64(a):
+    """`a` as a C-contiguous float64 array (a copy only when it is not one): the kernels
+    below are compiled for that layout alone."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+@rowloop(rows=3)
+def _apply_kernel(aq, s, t, pos, q, out_pos, out_q):
+    # s R x + t (R from its quaternion once, as qa.rotate does for one rotation) and aq ∘ q
+    a = (aq[0], aq[1], aq[2], aq[3])
+    m = E.qmatrix(a)
+    for i in prange(pos.shape[0]):
+        x, y, z = E.load3(pos, i)
+        out_pos[i, 0] = (m[0] * x + m[1] * y + m[2] * z) * s + t[0]
+        out_pos[i, 1] = (m[3] * x + m[4] * y + m[5] * z) * s + t[1]
+        out_pos[i, 2] = (m[6] * x + m[7] * y + m[8] * z) * s + t[2]
+        E.store4(out_q, i, E.qmul(a, E.load4(q, i)))
 
 
 IDENTITY = Alignment(np.eye(3), np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0)
@@ -361,7 +494,17 @@ def fit(ref, est, method="sim3", n_to_align=None):
     if method == "none":
         return IDENTITY
     k = slice(None) if n_to_align is None else slice(0, int(n_to_align))
-    a = umeyama(est.pos[k], ref.pos[k], with_scale=method != "se3")
+    return fit_moments(Moments.of(est.pos[k], ref.pos[k]), method)
+
+
+def fit_moments(moments, method="sim3"):
+    """:func:`fit` from the :class:`Moments` of the (estimate, reference) positions, e.g. merged
+    chunk by chunk."""
+    if method not in ALIGNMENTS:
+        raise ValueError(f"unknown alignment {method!r}; expected one of {ALIGNMENTS}")
+    if method == "none":
+        return IDENTITY
+    a = umeyama(moments, with_scale=method != "se3")
     return Alignment(IDENTITY.r, IDENTITY.q, IDENTITY.t, a.s) if method == "scale" else a
 
 
@@ -396,18 +539,45 @@ def _relation(relation):
         raise ValueError(f"unknown pose relation {relation!r}; expected one of {RELATIONS}")
 
 
-def _errors(relation, dpos, qa_, qb):
-    """Per-pose error of the SE(3) error E between rotations qa_, qb (E's rotation angle is
-    their distance) and the translation difference dpos (‖t_E‖ = ‖dpos‖)."""
-    import quatarray as qa
+_CODES = {r: k for k, r in enumerate(RELATIONS)}
 
-    if relation == "trans":
-        return np.sqrt(np.einsum("ij,ij->i", dpos, dpos))
-    theta = qa.distance(qa_, qb)
-    if relation == "rot":
-        return np.rad2deg(theta)
+
+@inline
+def _error(code, dx, dy, dz, qa_, qb):
+    """The error of the SE(3) error E between rotations qa_, qb (E's rotation angle is their
+    distance, as qa.distance) and the translation difference (dx, dy, dz) (‖t_E‖ is its norm),
+    for relation `code` (the index of the relation in RELATIONS)."""
+    d2 = dx * dx + dy * dy + dz * dz
+    if code == 0:
+        return np.sqrt(d2)
+    theta = 2.0 * E.half_angle(E.qmul(E.qconj(E.qscaled(qa_)[0]), E.qscaled(qb)[0]))
+    if code == 1:
+        return theta * (180.0 / np.pi)  # np.rad2deg
     half = np.sin(0.5 * theta)
-    return np.sqrt(8.0 * half * half + np.einsum("ij,ij->i", dpos, dpos))
+    return np.sqrt(8.0 * half * half + d2)
+
+
+@rowloop(rows=1)
+def _ape_kernel(code, ref_pos, ref_q, est_pos, est_q, out):
+    for i in prange(out.shape[0]):
+        r, e = E.load3(ref_pos, i), E.load3(est_pos, i)
+        out[i] = _error(code, e[0] - r[0], e[1] - r[1], e[2] - r[2], E.load4(est_q, i), E.load4(ref_q, i))
+
+
+@inline
+def _relative(pos, q, i, j):
+    # p_i⁻¹ p_j: rotation q_i* q_j, translation R_i^T (x_j − x_i)
+    qi = E.qconj(E.load4(q, i))
+    xi, xj = E.load3(pos, i), E.load3(pos, j)
+    return E.qmul(qi, E.load4(q, j)), E.qrotate(qi, (xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]))
+
+
+@rowloop(rows=1)
+def _rpe_kernel(code, i, j, ref_pos, ref_q, est_pos, est_q, out):
+    for k in prange(out.shape[0]):
+        q_ref, t_ref = _relative(ref_pos, ref_q, i[k], j[k])
+        q_est, t_est = _relative(est_pos, est_q, i[k], j[k])
+        out[k] = _error(code, t_est[0] - t_ref[0], t_est[1] - t_ref[1], t_est[2] - t_ref[2], q_ref, q_est)
 
 
 def ape(ref, est, relation="trans"):
@@ -426,7 +596,9 @@ def ape(ref, est, relation="trans"):
     (array([0., 5.]), array([ 0., 90.]))
     """
     _relation(relation)
-    return _errors(relation, est.pos - ref.pos, est.q, ref.q)
+    out = np.empty(len(est))
+    _ape_kernel(_CODES[relation], _c64(ref.pos), _c64(ref.q), _c64(est.pos), _c64(est.q), out)
+    return out
 
 
 @kernel
@@ -577,19 +749,18 @@ def rpe(ref, est, relation="trans", delta=1, delta_unit="frames", all_pairs=Fals
     >>> rpe(ref, est)[0]
     array([0., 1.])
     """
-    import quatarray as qa
-
     _relation(relation)
     i, j = pairs(est, delta, delta_unit, all_pairs, rel_delta_tol)
-    si, sj = _as_slice(i), _as_slice(j)  # pairs in frames: strided views, no copies
+    return rpe_of_pairs(ref, est, i, j, relation), i, j
 
-    def relative(p):  # p_i⁻¹ p_j: rotation q_i* q_j, translation R_i^T (x_j − x_i)
-        qi = qa.conjugate(p.q[si])
-        return qa.multiply(qi, p.q[sj]), qa.rotate(qi, p.pos[sj] - p.pos[si])
 
-    q_ref, t_ref = relative(ref)
-    q_est, t_est = relative(est)
-    return _errors(relation, t_est - t_ref, q_ref, q_est), i, j
+def rpe_of_pairs(ref, est, i, j, relation="trans"):
+    """The relative pose errors (see :func:`rpe`) of the given index pairs (i, j)."""
+    _relation(relation)
+    out = np.empty(np.size(i))
+    _rpe_kernel(_CODES[relation], np.ascontiguousarray(i, np.int64), np.ascontiguousarray(j, np.int64),
+                _c64(ref.pos), _c64(ref.q), _c64(est.pos), _c64(est.q), out)
+    return out
 
 
 def _as_slice(idx):
@@ -601,8 +772,11 @@ def _as_slice(idx):
     return idx
 
 
-def statistics(errors):
+def statistics(errors, overwrite_input=False):
     """evo's statistics of per-pose errors: rmse, mean, median, std, min, max, sse.
+
+    No temporary as large as `errors` is made (std is merged over blocks, Chan's update), except
+    the median's copy, which `overwrite_input` saves (`errors` is then reordered).
 
     Examples
     --------
@@ -614,11 +788,22 @@ def statistics(errors):
     e = np.asarray(errors, dtype=np.float64)
     if e.size == 0:
         raise ValueError("no errors to summarise")
-    sq = e * e
-    return {
-        "rmse": float(np.sqrt(np.mean(sq))), "mean": float(np.mean(e)), "median": float(np.median(e)),
-        "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e)), "sse": float(np.sum(sq)),
-    }
+    n = e.size
+    sse = float(np.dot(e, e))
+    mean = float(np.mean(e))
+    count, mu, m2 = 0, 0.0, 0.0  # std: blocks' (count, mean, Σ(x − mean)²) merged
+    for a in range(0, n, MOMENT_BLOCK):
+        b = e[a:a + MOMENT_BLOCK]
+        mb = float(np.mean(b))
+        d = b - mb
+        k = count + b.size
+        m2 += float(np.dot(d, d)) + (mb - mu) ** 2 * count * b.size / k
+        mu += (mb - mu) * b.size / k
+        count = k
+    out = {"rmse": float(np.sqrt(sse / n)), "mean": mean, "median": 0.0, "std": float(np.sqrt(m2 / n)),
+           "min": float(np.min(e)), "max": float(np.max(e)), "sse": sse}
+    out["median"] = float(np.median(e, overwrite_input=overwrite_input))
+    return out
 
 
 @dataclass
@@ -703,5 +888,5 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
         index, i0 = np.arange(errors.size), None
     else:
         errors, i0, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
-    t = None if ref.t is None else ref.t[index]
+    t = None if ref.t is None else ref.t[_as_slice(index)]  # APE, RPE in frames: a view
     return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])

@@ -17,7 +17,7 @@ import pytest
 import quatarray as qa
 from quatarray import trajectory as T
 from quatarray.cli import main
-from quatarray.evaluate import read_poses
+from quatarray.evaluate import PoseFile, read_poses, run_chunked
 
 evo = pytest.importorskip("evo", reason="evo (the test extra) is needed to compare with it")
 from evo.core import metrics, sync  # noqa: E402
@@ -348,3 +348,98 @@ def test_cli_eval_exit_codes(data_dir, tmp_path):
     assert rc == 2 and "whole number" in err
     rc, err = run(tum, tum, "--align", "rigid")
     assert rc == 2
+
+
+# --------------------------------------------------------------------------
+# pose arrays evaluated in chunks
+
+
+def _npy(path, p):
+    np.save(path, np.c_[p.pos, p.q] if p.t is None else np.c_[p.t, p.pos, p.q])
+    return PoseFile.open(str(path))
+
+
+@pytest.mark.parametrize("metric, delta, all_pairs", [("ape", 1, False), ("rpe", 1, False), ("rpe", 7, False),
+                                                      ("rpe", 5, True)])
+@pytest.mark.parametrize("align, n_to_align", [("none", None), ("sim3", None), ("se3", 300), ("scale", None)])
+def test_chunked_equals_in_memory(case, tmp_path, metric, delta, all_pairs, align, n_to_align):
+    """Chunked evaluation of npy pose arrays gives the in-memory numbers bit for bit (the alignment's
+    moments are summed over the same blocks), whichever stream is the longer, and equals evo."""
+    files = _npy(tmp_path / "r.npy", _read(case[1])), _npy(tmp_path / "e.npy", _read(case[2]))
+    ref, est = read_poses(files[0].path), read_poses(files[1].path)  # the in-memory path on the same files
+    for a, b, off in ((files, (ref, est), 0.0), (files[::-1], (est, ref), 0.002)):
+        mem = T.evaluate(*b, metric, align, "full", delta, "frames", all_pairs, n_to_align, t_offset=off)
+        for chunk in (97, 4096):
+            got = run_chunked(*a, metric, align, "full", delta, all_pairs, n_to_align, 0.01, off, chunk)
+            assert got.stats == mem.stats
+            np.testing.assert_array_equal(got.errors, mem.errors)
+    theirs, _ = _evo(case[3], case[4], metric, align, "full", -1 if n_to_align is None else n_to_align,
+                     **({} if metric == "ape" else {"delta": delta, "all_pairs": all_pairs}))
+    _same(run_chunked(*files, metric, align, "full", delta, all_pairs, n_to_align, 0.01, 0.0, 97).stats, theirs)
+
+
+def test_chunked_cli_writes_as_in_memory(case, capsys, tmp_path):
+    """`eval` of npy pose arrays (chunked) prints, and writes --out, as on the text files (to the
+    last digits: the npy holds rotations normalised once more)."""
+    ref, est = _read(case[1]), _read(case[2])
+    _npy(tmp_path / "r.npy", ref), _npy(tmp_path / "e.npy", est)
+    for metric in ("ape", "rpe"):
+        argv = ["--metric", metric, "--delta", "3", "--align", "sim3", "--pose-relation", "rot"]
+        rc, text_npy, err = _cli(capsys, "eval", tmp_path / "r.npy", tmp_path / "e.npy", *argv, "--chunk", 101,
+                                 "--out", tmp_path / f"{metric}.csv")
+        assert rc == 0, err
+        rc, text, err = _cli(capsys, "eval", case[1], case[2], *argv, "--out", tmp_path / f"{metric}_txt.csv")
+        assert rc == 0, err
+        assert text_npy == text
+        a = np.genfromtxt(tmp_path / f"{metric}.csv", delimiter=",", names=True)
+        b = np.genfromtxt(tmp_path / f"{metric}_txt.csv", delimiter=",", names=True)
+        assert a.dtype.names == b.dtype.names
+        for k in a.dtype.names:  # the npy holds the rotations once more normalised: last digits
+            np.testing.assert_allclose(a[k], b[k], rtol=1e-12 if k == "error" else 0)
+
+
+def test_chunked_unsorted_times_read_whole(tmp_path, capsys):
+    """Times that go back in the stream searched: the streams are read whole, with the same result."""
+    rng = np.random.default_rng(4)
+    n = 400
+    t = np.arange(n) * 0.1
+    ref = T.poses(t, np.cumsum(rng.normal(size=(n, 3)), axis=0), qa.random(n, rng=rng))
+    est = ref.take(np.r_[0:200, 250:300, 200:250, 300:n]).replace(t=t[np.r_[0:200, 250:300, 200:250, 300:n]])
+    files = _npy(tmp_path / "r.npy", ref), _npy(tmp_path / "e.npy", est)
+    assert run_chunked(*files[::-1], "ape", "sim3", "trans", 1, False, None, 0.01, 0.0, 64) is None
+    rc, text, err = _cli(capsys, "eval", tmp_path / "e.npy", tmp_path / "r.npy", "--align", "sim3")
+    assert rc == 0, err
+    stats = T.evaluate(est, ref, "ape", "sim3").stats
+    assert f"{stats['rmse']:.9g}" in text
+
+
+@pytest.mark.slow
+def test_chunked_memory_is_bounded(tmp_path):
+    """A 5·10⁶-pose npy pair (610 MiB) is evaluated (sim3 APE, errors to an npy) with peak RSS a few
+    MiB above the interpreter's own plus the errors themselves (8 bytes a pose: 38 MiB)."""
+    n = 5_000_000
+    rng = np.random.default_rng(5)
+    for name, jitter in (("r", 0.0), ("e", 0.002)):
+        mm = np.lib.format.open_memmap(tmp_path / f"{name}.npy", "w+", np.float64, (n, 8))
+        for a in range(0, n, 1 << 20):
+            k = np.arange(a, min(a + (1 << 20), n))
+            mm[k[0]:k[-1] + 1, 0] = 1e9 + k * 0.01 + rng.uniform(-jitter, jitter, k.size)
+            mm[k[0]:k[-1] + 1, 1:4] = np.c_[np.sin(k * 1e-4), np.cos(k * 1.3e-4), k * 1e-6]
+            mm[k[0]:k[-1] + 1, 4:] = [1.0, 0, 0, 0]
+            mm[k[0]:k[-1] + 1, 5] = rng.normal(scale=0.01, size=k.size)
+        del mm
+        np.save(tmp_path / f"{name}_small.npy", np.load(tmp_path / f"{name}.npy", mmap_mode="r")[:1000])
+    rss = ("import resource, subprocess, sys\nsubprocess.run(sys.argv[1:], check=True)\n"
+           "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
+
+    def peak_kib(r, e, out, *argv):
+        res = subprocess.run([sys.executable, "-c", rss, sys.executable, "-m", "quatarray", "eval", tmp_path / r,
+                              tmp_path / e, "--align", "sim3", "--out", tmp_path / out, *map(str, argv)],
+                             capture_output=True, text=True, cwd=ROOT)
+        assert res.returncode == 0, res.stderr
+        return int(res.stdout.split()[-1])
+
+    base = peak_kib("r_small.npy", "e_small.npy", "o_small.npy")
+    grown = (peak_kib("r.npy", "e.npy", "o.npy", "--chunk", 8192) - base) / 1024
+    assert grown < 38 + 25, f"peak RSS grew by {grown:.0f} MiB over the {base / 1024:.0f} MiB baseline"
+    assert np.load(tmp_path / "o.npy", mmap_mode="r").shape == (n, 1)
