@@ -443,3 +443,19 @@ def test_chunked_memory_is_bounded(tmp_path):
     grown = (peak_kib("r.npy", "e.npy", "o.npy", "--chunk", 8192) - base) / 1024
     assert grown < 38 + 25, f"peak RSS grew by {grown:.0f} MiB over the {base / 1024:.0f} MiB baseline"
     assert np.load(tmp_path / "o.npy", mmap_mode="r").shape == (n, 1)
+
+
+def test_chunked_zarr_equals_npy(case, capsys, tmp_path):
+    """Zarr pose stores (chunked unlike the evaluation's blocks) are evaluated in chunks as npy files are."""
+    zarr = pytest.importorskip("zarr")
+    ref, est = _read(case[1]), _read(case[2])
+    for name, p in (("r", ref), ("e", est)):
+        a = np.c_[p.pos, p.q] if p.t is None else np.c_[p.t, p.pos, p.q]
+        np.save(tmp_path / f"{name}.npy", a)
+        zarr.create_array(store=str(tmp_path / f"{name}.zarr"), data=a, chunks=(333, a.shape[1]))
+    argv = ["--metric", "rpe", "--delta", "2", "--align", "sim3", "--chunk", "101"]
+    rc, via_npy, err = _cli(capsys, "eval", tmp_path / "r.npy", tmp_path / "e.npy", *argv)
+    assert rc == 0, err
+    rc, via_zarr, err = _cli(capsys, "eval", tmp_path / "r.zarr", tmp_path / "e.zarr", *argv)
+    assert rc == 0, err
+    assert via_zarr == via_npy
