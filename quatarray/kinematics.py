@@ -27,7 +27,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _jit
-from ._jit import kernel, like, prange, specialise
+from ._jit import inline, kernel, like, prange, specialise
 from ._trig import sincos_limit
 from ._validate import as_float, as_times, check_core, result_dtype
 from .algebra import multiply as qa_multiply
@@ -46,6 +46,18 @@ TILE = 4096  # the fewest steps a block of the threaded scan takes
 MEAN = True  # rebound in each copy of _exponentials (see _EXPONENTIALS)
 
 
+@inline
+def step_rotvec(omega, h, k, mean):
+    """The rotation vector r h_k of step k: r = (ω_k + ω_{k+1})/2 (`mean`) or ω_k."""
+    a = E.load3(omega, k)
+    if mean:
+        b = E.load3(omega, k + 1)
+        half = like(a[0], 0.5)
+        a = (half * (a[0] + b[0]), half * (a[1] + b[1]), half * (a[2] + b[2]))
+    hk = like(a[0], h[k])
+    return (a[0] * hk, a[1] * hk, a[2] * hk)
+
+
 def _exponentials(omega, h, out):
     """out[k+1] = exp(r h_k / 2), r = (ω_k + ω_{k+1})/2 (MEAN) or ω_k, in out's
     float type; branch-free, so the loop vectorises. Returns how many steps have a
@@ -53,13 +65,7 @@ def _exponentials(omega, h, out):
     those with libm."""
     far = 0
     for k in prange(out.shape[0] - 1):
-        a = E.load3(omega, k)
-        if MEAN:
-            b = E.load3(omega, k + 1)
-            half = like(a[0], 0.5)
-            a = (half * (a[0] + b[0]), half * (a[1] + b[1]), half * (a[2] + b[2]))
-        hk = like(a[0], h[k])
-        v = (a[0] * hk, a[1] * hk, a[2] * hk)
+        v = step_rotvec(omega, h, k, MEAN)
         E.store4(out, k + 1, rotvec_quat(v))
         far += like(v[0], 0.5) * E.vnorm(v) > sincos_limit(v[0])
     return far
@@ -71,13 +77,7 @@ _EXPONENTIALS = {m: kernel(specialise(_exponentials, "_mean" if m else "_start",
 @kernel
 def _exponentials_far(omega, h, mean, out):
     for k in range(out.shape[0] - 1):
-        a = E.load3(omega, k)
-        if mean:
-            b = E.load3(omega, k + 1)
-            half = like(a[0], 0.5)
-            a = (half * (a[0] + b[0]), half * (a[1] + b[1]), half * (a[2] + b[2]))
-        hk = like(a[0], h[k])
-        v = (a[0] * hk, a[1] * hk, a[2] * hk)
+        v = step_rotvec(omega, h, k, mean)
         half = like(v[0], 0.5) * E.vnorm(v)
         if not half <= sincos_limit(half):
             s = half_sinc(half, np.sin(half))
