@@ -33,7 +33,7 @@ from ._jit import element, kernel, like, prange, rowloop, specialise
 from ._mat33 import cofactor33, det33, matmul, matvec, scale9
 from ._rates import acc_coeffs, inv_coeff, jac, jac_coeffs, jac_dot, log_arc, qexp_half
 from ._trig import sincos
-from .interpolation import BLOCK, ld1, ld4flat, next_run, st4flat
+from .interpolation import BLOCK, ld1, st1, ld4flat, next_run, st4flat
 
 MAX_ITER = 10  # scipy's RotationSpline.MAX_ITER
 TOL = 1e-9  # and its TOL
@@ -212,9 +212,9 @@ def _eval(times, new_t, keys, coef, out):
                         a = jac(rv, k1, k2, rdd)
                         nl = jac_dot(rv, rd, j1, j2, k2)
                         v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
-                    out[3 * i] = v[0]
-                    out[3 * i + 1] = v[1]
-                    out[3 * i + 2] = v[2]
+                    st1(out, 3 * i, v[0])
+                    st1(out, 3 * i + 1, v[1])
+                    st1(out, 3 * i + 2, v[2])
             j = e
 
 

@@ -42,7 +42,7 @@ import numpy as np
 from ._elements import cross, qconj, qdot, qmul, qrotate_raw
 from ._jit import inline, like, prange, rowloop, specialise
 from ._trig import atan2, sincos
-from .interpolation import BLOCK, NSEG, arc_slerp, ld1, next_run, seg_arc, seg_keys
+from .interpolation import BLOCK, NSEG, arc_slerp, ld1, st1, next_run, seg_arc, seg_keys
 
 SMALL2 = 0.0025  # n² below which the series are used (n < 0.05)
 
@@ -295,9 +295,9 @@ def _eval_rates(times, new_t, seg, out):
                         s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
                         s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
                         v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
-                out[3 * i] = v[0] * scale
-                out[3 * i + 1] = v[1] * scale
-                out[3 * i + 2] = v[2] * scale
+                st1(out, 3 * i, v[0] * scale)
+                st1(out, 3 * i + 1, v[1] * scale)
+                st1(out, 3 * i + 2, v[2] * scale)
             j = e
 
 
