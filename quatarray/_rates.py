@@ -32,8 +32,8 @@ The methods' curves (in u of one segment):
   moving ends with w = 2u(1 − u) (w' = 2 − 4u, w'' = −4).
 
 The functions of the rotation angle n = |r| in J, J⁻¹ and N are evaluated
-from sin(n/2), cos(n/2), in closed form above n = 0.05 and as their Taylor
-series below (where the closed forms cancel); no other transcendental is
+from sin(n/2), cos(n/2), in closed form above n = 0.25 and as their Taylor
+series to n¹⁰ below (where the closed forms cancel); no other transcendental is
 needed beyond those of the curve's value (one atan2 per arc, one sincos).
 """
 
@@ -44,7 +44,8 @@ from ._jit import inline, like, prange, rowloop, specialise
 from ._trig import atan2, sincos
 from .interpolation import BLOCK, NSEG, arc_slerp, ld1, st1, next_run, seg_arc, seg_keys
 
-SMALL2 = 0.0025  # n² below which the series are used (n < 0.05)
+SMALL2 = 0.0625  # n² below which the series are used (n < 0.25: their terms to n¹⁰ are exact to 1e-17 there)
+TINY2 = 1e-6  # n² below which sin(n/2)/n takes its series (it does not cancel: only 0/0 is avoided)
 
 
 @inline
@@ -74,6 +75,13 @@ def unrotate(q, v):
 
 
 @inline
+def _series(n2, a0, a1, a2, a3, a4, a5):
+    """a0 + a1 n² + … + a5 n¹⁰ (Horner in n²)."""
+    return like(n2, a0) + n2 * (like(n2, a1) + n2 * (like(n2, a2) + n2 * (like(n2, a3) + n2 * (
+        like(n2, a4) + n2 * like(n2, a5)))))
+
+
+@inline
 def jac_coeffs(n2, s, c):
     """(k1, k2) of the rotation vector r with |r|² = n2, given s = sin(|r|/2),
     c = cos(|r|/2): J(r) = I − k1[r]× + k2[r]×², k1 = (1 − cos n)/n², k2 = (n − sin n)/n³."""
@@ -83,8 +91,8 @@ def jac_coeffs(n2, s, c):
     n = np.sqrt(m2)
     k1 = like(n2, 2.0) * s * s / m2
     k2 = (n - like(n2, 2.0) * s * c) / (m2 * n)
-    k1s = like(n2, 0.5) - n2 * (like(n2, 1.0 / 24.0) - n2 * like(n2, 1.0 / 720.0))
-    k2s = like(n2, 1.0 / 6.0) - n2 * (like(n2, 1.0 / 120.0) - n2 * like(n2, 1.0 / 5040.0))
+    k1s = _series(n2, 0.5, -1.0 / 24.0, 1.0 / 720.0, -1.0 / 40320.0, 1.0 / 3628800.0, -1.0 / 479001600.0)
+    k2s = _series(n2, 1.0 / 6.0, -1.0 / 120.0, 1.0 / 5040.0, -1.0 / 362880.0, 1.0 / 39916800.0, -1.0 / 6227020800.0)
     return (k1s if small else k1), (k2s if small else k2)
 
 
@@ -96,7 +104,8 @@ def inv_coeff(n2, s, c):
     small = n2 < like(n2, SMALL2)
     m2 = one if small else n2
     ki = (one - like(n2, 0.5) * np.sqrt(m2) * c / (one if small else s)) / m2
-    kis = like(n2, 1.0 / 12.0) + n2 * (like(n2, 1.0 / 720.0) + n2 * like(n2, 1.0 / 30240.0))
+    kis = _series(n2, 1.0 / 12.0, 1.0 / 720.0, 1.0 / 30240.0, 1.0 / 1209600.0, 1.0 / 47900160.0,
+                  691.0 / 1307674368000.0)
     return kis if small else ki
 
 
@@ -113,8 +122,9 @@ def acc_coeffs(n2, s, c):
     sc = s * c
     j1 = (like(n2, 4.0) * s2 - two * n * sc) / (m2 * m2)
     j2 = (like(n2, 6.0) * sc - like(n2, 3.0) * n + two * n * s2) / (m2 * m2 * n)
-    j1s = like(n2, 1.0 / 12.0) - n2 * (like(n2, 1.0 / 180.0) - n2 * like(n2, 1.0 / 6720.0))
-    j2s = like(n2, -1.0 / 60.0) + n2 * (like(n2, 1.0 / 1260.0) - n2 * like(n2, 1.0 / 60480.0))
+    j1s = _series(n2, 1.0 / 12.0, -1.0 / 180.0, 1.0 / 6720.0, -1.0 / 453600.0, 1.0 / 47900160.0, -1.0 / 7264857600.0)
+    j2s = _series(n2, -1.0 / 60.0, 1.0 / 1260.0, -1.0 / 60480.0, 1.0 / 4989600.0, -1.0 / 622702080.0,
+                  1.0 / 108972864000.0)
     return (j1s if small else j1), (j2s if small else j2)
 
 
@@ -193,7 +203,7 @@ def slerp_rates(a, wa, b, wb, w, dw):
 @inline
 def qexp_half(y, ny2, hs, hc):
     """Exp(y) = (cos(n/2), sin(n/2) y/n), n = |y|, given hs, hc = sin, cos of n/2."""
-    small = ny2 < like(ny2, SMALL2)
+    small = ny2 < like(ny2, TINY2)
     n = np.sqrt(like(ny2, 1.0) if small else ny2)
     # sin(n/2)/n: series below the threshold (and exactly 1/2 at 0)
     f = hs / n

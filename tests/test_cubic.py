@@ -125,6 +125,7 @@ def test_cubic_shapes_and_empty(rng):
     assert qa.spline(t, keys, np.empty(0), method="cubic", order=1).shape == (0, 3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [0, 1, 2])
 def test_cubic_parallel_variants_agree_with_serial(monkeypatch, order):
     from quatarray import _jit
