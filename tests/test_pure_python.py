@@ -20,6 +20,8 @@ MODULES = [
     "test_euler.py",
     "test_trig.py",
     "test_interpolation.py",
+    "test_cubic.py",
+    "test_rates.py",
     "test_transforms.py",
     "test_align.py",
     "test_kinematics.py",
