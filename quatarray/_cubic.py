@@ -29,7 +29,7 @@ acceleration J(ρ)ρ'' + N(ρ, ρ') (body frame, radians per time unit: scipy's
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, kernel, like, prange, rowloop, specialise
+from ._jit import element, inline, kernel, like, prange, rowloop, specialise
 from ._mat33 import cofactor33, det33, matmul, matvec, scale9
 from ._rates import acc_coeffs, inv_coeff, jac, jac_coeffs, jac_dot, log_arc, qexp_half
 from ._trig import sincos
@@ -40,7 +40,7 @@ TOL = 1e-9  # and its TOL
 NCOEF = 9  # c0, c1, c2 of a segment
 
 
-@element
+@inline
 def _jmat(r, k1, k2, sgn):
     """I + sgn·k1[r]× + k2[r]×² as a row-major 9-tuple (sgn = −1: J(r); +1 with
     k1 = ½: J(r)⁻¹)."""
@@ -67,6 +67,21 @@ def _sub9(a, b):
 
 
 
+# the keys' steps through libm's atan2: the setup loop is not SIMD, and the polynomial
+# atan2 of the evaluation loops took LLVM 0.5 s more to compile here
+_log_step = inline(specialise(log_arc.py_func, "_libm", atan2=np.arctan2))
+
+
+@element
+def _geometry(p, q):
+    """(r, J(r), J(r)⁻¹, (j1, j2, k2)) of the segment from key p to key q: r = Log(p* ⊗ q),
+    the Jacobians as 9-tuples and the coefficients of N(r, ·) (:func:`jac_dot`)."""
+    r, n2, s, c = _log_step(p, q)
+    k1, k2 = jac_coeffs(n2, s, c)
+    j1, j2 = acc_coeffs(n2, s, c)
+    return r, _jmat(r, k1, k2, -1.0), _jmat(r, 0.5, inv_coeff(n2, s, c), 1.0), (j1, j2, k2)
+
+
 @element
 def _ld9(a, i):
     return (a[i, 0], a[i, 1], a[i, 2], a[i, 3], a[i, 4], a[i, 5], a[i, 6], a[i, 7], a[i, 8])
@@ -89,12 +104,13 @@ def _setup(q, dt, coef):
     r = np.empty((m, 3))
     jm = np.empty((m, 9))  # J(r_k)
     ji = np.empty((m, 9))  # J(r_k)⁻¹
+    kn = np.empty((m, 3))  # the coefficients of N(r_k, ·)
     for k in range(m):
-        rk, n2, s, c = log_arc(E.load4(q, k), E.load4(q, k + 1))
-        k1, k2 = jac_coeffs(n2, s, c)
+        rk, jk, jik, knk = _geometry(E.load4(q, k), E.load4(q, k + 1))
         E.store3(r, k, rk)
-        _st9(jm, k, _jmat(rk, k1, k2, -1.0))
-        _st9(ji, k, _jmat(rk, 0.5, inv_coeff(n2, s, c), 1.0))
+        _st9(jm, k, jk)
+        _st9(ji, k, jik)
+        E.store3(kn, k, knk)
     w = np.empty((m, 3))  # w[k]: the rate at key k + 1 (w[m − 1] stays r_{m−1}/h_{m−1})
     for k in range(m):
         for c in range(3):
@@ -128,13 +144,8 @@ def _setup(q, dt, coef):
         for it in range(MAX_ITER):
             passes += 1
             for j in range(n):  # right side with the current rates, forward sweep
-                rk = E.load3(r, j)
                 rd = matvec(_ld9(ji, j), E.load3(w, j))
-                rn2 = rk[0] * rk[0] + rk[1] * rk[1] + rk[2] * rk[2]
-                hs, hc = sincos(0.5 * np.sqrt(rn2))
-                j1, j2 = acc_coeffs(rn2, hs, hc)
-                k2 = jac_coeffs(rn2, hs, hc)[1]
-                nb = jac_dot(rk, rd, j1, j2, k2)
+                nb = jac_dot(E.load3(r, j), rd, kn[j, 0], kn[j, 1], kn[j, 2])
                 bj = (b0[j, 0] - nb[0], b0[j, 1] - nb[1], b0[j, 2] - nb[2])
                 if j > 0:
                     gy = matvec(_ld9(g, j), E.load3(y, j - 1))
