@@ -886,7 +886,7 @@ def _convert_task(reader, a, b, row0, rows, to, degrees, target, drop):
     memory slowed both), a zarr target the whole block in one call. Returns
     the report figures.
     """
-    from .cli import _PIECE, _target
+    from .jobs import ROWS_PER_PIECE as _PIECE, target as _target
     from .io.clean import Cleaner
 
     _, core, fn = _target(to, degrees)
@@ -946,7 +946,7 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
     int
         0 (the command line's exit status).
     """
-    from .cli import _target, gimbal_note
+    from .jobs import gimbal_note, target as _target
 
     err = sys.stderr if err is None else err
     _check_files(src, dst, force)
@@ -1570,7 +1570,7 @@ def _read_keys_task(reader, a, b, drop):
     does, piece by piece (a long run of dropped rows never sits in memory), and the
     normalisation figures; or the DataError naming the block's first bad row, returned
     (see :func:`_first_error`)."""
-    from .cli import _PIECE
+    from .jobs import ROWS_PER_PIECE as _PIECE
     from .io.clean import Cleaner
     from .io.errors import DataError
 
@@ -1677,7 +1677,8 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     int
         0 (the command line's exit status).
     """
-    from .cli import _FileTimes, _RateTimes, timed_chunks
+    from .io.streams import timed_chunks
+    from .jobs import FileTimes as _FileTimes, RateTimes as _RateTimes
     from .io.clean import Cleaner
     from .io.errors import DataError
     from .io.readers import open_stream

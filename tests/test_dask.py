@@ -751,7 +751,8 @@ def test_convert_file_blocks_of_many_pieces(client, tmp_path, on_invalid, capsys
     """Blocks longer than the command line's pieces: an npy target takes them piece by
     piece (the last one short; with drop, pieces shortened by their bad rows, one
     piece all bad), each at its place in the file."""
-    from quatarray.cli import _PIECE, main
+    from quatarray.cli import main
+    from quatarray.jobs import ROWS_PER_PIECE as _PIECE
 
     n = 3 * _PIECE + 123
     q = stream(n, seed=13)

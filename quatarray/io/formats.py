@@ -49,6 +49,11 @@ def empty(name):
     return DataError(f"{name}: empty file (no data rows)")
 
 
+def plain_number(x):
+    """A number as messages show it: plain and exact (``1311868164.5``, not ``np.float64(…)``)."""
+    return repr(float(x))
+
+
 def shown(text, limit=60):
     """`text` as an error message may show it: characters that are not printable
     (control characters, undecodable bytes) escaped as ``repr`` escapes them
