@@ -1,5 +1,6 @@
-"""A chunk of a stream (optional times, optional positions, and the rows), and what
-turns chunk iterators into others: joined, re-cut, timed, paired."""
+"""A chunk of a stream (optional times, optional positions, and the rows), the
+:class:`Reader` base every stream reader extends, and what turns chunk iterators
+into others: joined, re-cut, timed, paired."""
 
 from dataclasses import dataclass, replace
 
@@ -55,6 +56,42 @@ class Chunk:
 
     def replace(self, **kw):
         return replace(self, **kw)
+
+
+class Reader:
+    """What every stream reader is: an iterable of :class:`Chunk` objects and the
+    attributes that describe its stream (see :mod:`quatarray.io.readers`)."""
+
+    kind = "quat"
+    layout = "wxyz"
+    has_time = False
+    has_pos = False
+    rows = None
+    skipped = 0
+    format = ""
+    columns = ()
+    projected = 0  # rotation matrices that were not orthonormal (above rounding level)
+    max_projection = 0.0  # the largest |R^T R - I| entry among them
+
+    @property
+    def notes(self):
+        """One-line remarks for stderr: the layout assumed for a file without column
+        names, an option that does not apply, a frame count that does not match."""
+        return self.__dict__.setdefault("_notes", [])
+
+    def say(self, err):
+        """Write the notes not written yet to `err`."""
+        said = self.__dict__.get("_said", 0)
+        for note in self.notes[said:]:
+            print(note, file=err)
+        self._said = len(self.notes)
+
+    @property
+    def noun(self):
+        return {"quat": "quaternion", "rate": "angular velocity"}.get(self.kind, "vector")
+
+    def where(self, row):
+        return f"{self.name}: row {row}"
 
 
 def concat(chunks):
