@@ -432,7 +432,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
     normalised and unflipped across the whole stream; the new times are
     those of the command line (``t0 + k/rate`` up to the last key time, or a
     file of times inside the keys' span); every output block of `chunk` rows
-    is interpolated with :func:`spline` by one task and written into its
+    is interpolated with :func:`~quatarray.dask.windows.spline` by one task and written into its
     rows of DST (an ``.npy`` file or a ``.zarr`` store chunked by `chunk`
     rows), which appears when all succeeded.
 

@@ -36,7 +36,7 @@ def _flip_summary(block, rows):
     """What the sign scan needs of one key block: its first row, its last row after
     the block is unflipped on its own, whether that negated each of `rows` (the
     windows' first rows in this block), how many leading rows take the sign carried
-    into the block (see :func:`_sign_breaks`) and whether that is all of them
+    into the block (see :func:`quatarray.dask.arrays._sign_breaks`) and whether that is all of them
     (``full``); keys normalised first, as
     :func:`quatarray.spline` does. One pass, nothing the size of the block written.
     Also the block's first and last ``EDGE_ROWS`` rows as they are: the rows
