@@ -2,7 +2,9 @@
 
 Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
 stays bounded whatever the file size; reading and writing live in
-:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage (an
+:mod:`quatarray.io`, what a convert or resample job is (targets, new times,
+the drivers) in :mod:`quatarray.jobs`, the ``--scheduler`` jobs in
+:mod:`quatarray.dask.files`; this module is the argument parsing over them. Exit status: 0 success, 1 bad data, 2 bad usage (an
 output that cannot be written, or no memory, included), 128 + N when stopped
 by signal N (SIGINT, SIGTERM, SIGHUP: the temporary output is removed).
 Errors are one line on stderr naming the file, the line or row and what is

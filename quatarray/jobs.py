@@ -40,6 +40,7 @@ ROWS_PER_PIECE = 1 << 16
 __all__ = [
     "METHODS", "TARGETS", "QUAT_FIELDS", "ROWS_PER_PIECE", "euler_seq", "target", "gimbal_note",
     "convert_stream", "RateTimes", "FileTimes", "new_times", "check_key_times", "resample_stream",
+    "library_error", "no_rows",
 ]
 
 
