@@ -26,6 +26,8 @@ acceleration J(ρ)ρ'' + N(ρ, ρ') (body frame, radians per time unit: scipy's
 ``RotationSpline(t, r)(new_t, order)``).
 """
 
+import math
+
 import numpy as np
 
 from . import _elements as E
@@ -69,7 +71,7 @@ def _sub9(a, b):
 
 # the keys' steps through libm's atan2: the setup loop is not SIMD, and the polynomial
 # atan2 of the evaluation loops took LLVM 0.5 s more to compile here
-_log_step = inline(specialise(log_arc.py_func, "_libm", atan2=np.arctan2))
+_log_step = inline(specialise(log_arc.py_func, "_libm", atan2=math.atan2))
 
 
 @element
