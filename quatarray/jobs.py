@@ -292,7 +292,8 @@ def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_time
     The key times are the reader's own, else those of `in_rate` or `in_times` (a
     :class:`FileTimes`; see :func:`check_key_times`). `bar` counts the rows read.
     """
-    from .interpolation import spline, unflip
+    from .interpolation import unflip
+    from .splines import spline
 
     def emit(keys, lo, hi, closed):
         # The new times of keys[lo:hi] come and are written at most `chunk` at a time, each

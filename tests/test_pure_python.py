@@ -20,6 +20,7 @@ MODULES = [
     "test_euler.py",
     "test_trig.py",
     "test_interpolation.py",
+    "test_splines.py",
     "test_cubic.py",
     "test_rates.py",
     "test_transforms.py",

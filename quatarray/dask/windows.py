@@ -41,7 +41,7 @@ def _flip_summary(block, rows):
     :func:`quatarray.spline` does. One pass, nothing the size of the block written.
     Also the block's first and last ``EDGE_ROWS`` rows as they are: the rows
     neighbouring windows take from it travel with the summary."""
-    from ..interpolation import _sign_summary
+    from ..splines import sign_summary
 
     if not len(block):
         return None
@@ -50,7 +50,7 @@ def _flip_summary(block, rows):
     negated = np.zeros(len(rows), np.bool_)
     tile = min(len(block), 1024)
     unit, dots = np.empty((tile + 1, 4), block.dtype), np.empty(tile, block.dtype)
-    reach = _sign_summary(block, np.asarray(rows, np.int64), ends, negated, unit, dots)
+    reach = sign_summary(block, np.asarray(rows, np.int64), ends, negated, unit, dots)
     full = np.array([[reach == len(block)]])
     edges = block[:EDGE_ROWS].copy(), block[-EDGE_ROWS:].copy()
     return ends[:1], ends[1:], full, reach, dict(zip(rows, negated.tolist())), edges
@@ -98,12 +98,13 @@ def _spline_task(times, pieces, flip0, new_times, method, origin, order=0):
     """The in-memory spline on a window of keys given in pieces (its rows in the
     blocks it spans), its first row taking the global sign; integer times are taken
     from `origin`, the whole stream's first key time, as in memory."""
-    from ..interpolation import _plan_times, _spline_unit, _times, _unit_keys
+    from .._validate import key_times
+    from ..splines import plan_times, resample_unit, unit_keys
 
     with _serial():
-        q = _unit_keys(pieces, flip0)
-        t, nt = _plan_times(_times(times, len(q)), np.asarray(new_times), origin=origin)
-        return _spline_unit(t, nt, q, method, order)
+        q = unit_keys(pieces, flip0)
+        t, nt = plan_times(key_times(times, len(q)), np.asarray(new_times), origin=origin)
+        return resample_unit(t, nt, q, method, order)
 
 
 def _output_chunks(nt, cuts, n_key_blocks, chunks):
@@ -140,10 +141,10 @@ def _span_task(block, t_ends, start):
     """:func:`_span` of a block of new times, or the in-memory ValueError for its first
     time outside the keys' span `t_ends` (returned, so that the first block's error is
     the one raised; `start` is the block's first index)."""
-    from ..interpolation import _plan_times
+    from ..splines import plan_times
 
     try:
-        _plan_times(t_ends, block, start)
+        plan_times(t_ends, block, start)
     except ValueError as exc:
         return exc
     return _span(block)
@@ -193,7 +194,7 @@ def _plan_given_times(t_raw, new_times, chunks, key_chunks):
     windows travel in the graph. New times held here need no pass over anything; a
     Dask array of them takes one small pass for each block's span (which raises the
     in-memory message for a time outside the keys' span)."""
-    from ..interpolation import _plan_times, _seconds
+    from ..splines import plan_times, seconds
 
     ends = t_raw[[0, -1]]
     if isinstance(new_times, da.Array):
@@ -201,15 +202,15 @@ def _plan_given_times(t_raw, new_times, chunks, key_chunks):
         spans, deps, nt_dtype = _span_pass(nt_d, starts, ends), [nt_d], nt_d.dtype
     else:
         nt_raw = _materialise(new_times, "new_times")
-        _, nt = _plan_times(ends, nt_raw)
+        _, nt = plan_times(ends, nt_raw)
         starts = np.cumsum((0,) + tuple(key_chunks))[1:-1]
-        cuts = _seconds(t_raw[starts[starts < t_raw.shape[0]]], nt_raw[:0], ends[0])[0]
+        cuts = seconds(t_raw[starts[starts < t_raw.shape[0]]], nt_raw[:0], ends[0])[0]
         sizes = _output_chunks(nt, cuts, len(key_chunks), chunks)
         parts = _split(nt_raw, sizes)
         spans, deps, nt_dtype = [_span(p) for p in parts], [], nt_raw.dtype
-    t = _seconds(t_raw, np.empty(0, nt_dtype), ends[0])[0]
+    t = seconds(t_raw, np.empty(0, nt_dtype), ends[0])[0]
     values, at = _span_ends(spans, nt_dtype)
-    found = np.searchsorted(t, _seconds(ends, values, ends[0])[1], side="right")
+    found = np.searchsorted(t, seconds(ends, values, ends[0])[1], side="right")
     segs = [None if m is None else found[m : m + 2] for m in at]
     return parts, sizes, segs, deps, lambda w0, w1, dsk: t_raw[w0:w1], ends[0]
 
@@ -220,15 +221,16 @@ def _key_time_block(block, start, origin, spans, nt_dtype):
     the whole array, time, next time), or None; and, for each end of an output
     block's span (see :func:`_span_ends`) within the block's times, how many of
     its times are ≤ that end (in seconds from `origin`, the first key time, when
-    both are integers: see ``interpolation._seconds``)."""
-    from ..interpolation import _first_not_increasing, _seconds
+    both are integers: see ``splines.seconds``)."""
+    from .._validate import first_not_increasing
+    from ..splines import seconds
 
     if not block.size:
         return None
-    i = _first_not_increasing(block)
+    i = first_not_increasing(block)
     worst = None if i is None else (start + i, block[i], block[i + 1])
     values, _ = _span_ends(spans, nt_dtype)
-    t, v = _seconds(block, values, origin)
+    t, v = seconds(block, values, origin)
     inside = np.flatnonzero((v >= t[0]) & (v <= t[-1]))
     counts = dict(zip(inside.tolist(), np.searchsorted(t, v[inside], side="right").tolist()))
     return block[0], block[-1], worst, counts
@@ -248,9 +250,10 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
     reads; a function giving the task expression of key times ``[w0, w1)``; and
     the first key time (integer times are counted from it).
     """
-    from ..interpolation import _check_times, _not_increasing, _plan_times, _seconds
+    from .._validate import check_times, not_increasing
+    from ..splines import plan_times, seconds
 
-    _check_times(tt, k, "times")
+    check_times(tt, k, "times")
     known_chunks(tt, "times")
     name = f"spline-plan-{uuid.uuid4().hex}"
     dsk = {}
@@ -280,19 +283,19 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
         if info is None:
             continue
         if last is not None and not info[0] > last:
-            raise _not_increasing("times", int(tstarts[i]) - 1, last, info[0])
+            raise not_increasing("times", int(tstarts[i]) - 1, last, info[0])
         if info[2] is not None:
-            raise _not_increasing("times", *info[2])
+            raise not_increasing("times", *info[2])
         last = info[1]
     full = [i for i, info in enumerate(infos) if info is not None]
     ends = np.array([infos[full[0]][0], last], tt.dtype)
     if not lazy_nt:
-        _plan_times(ends, nt_raw)  # a new time outside the keys' span: the in-memory message
+        plan_times(ends, nt_raw)  # a new time outside the keys' span: the in-memory message
     elif not all(s is None or _inside(ends, np.array(s, nt_dtype)) for s in spans):
         _span_pass(nt_d, starts, ends)  # raises the in-memory message, naming the time
-    firsts = _seconds(np.array([infos[i][0] for i in full], tt.dtype), np.empty(0, nt_dtype), ends[0])[0]
+    firsts = seconds(np.array([infos[i][0] for i in full], tt.dtype), np.empty(0, nt_dtype), ends[0])[0]
     values, at = _span_ends(spans, nt_dtype)
-    values = _seconds(ends, values, ends[0])[1]
+    values = seconds(ends, values, ends[0])[1]
 
     def found(m):  # searchsorted(times, values[m], "right") from the blocks' counts
         c = int(np.searchsorted(firsts, values[m], side="right")) - 1
@@ -307,10 +310,10 @@ def _plan_lazy_times(tt, k, new_times, chunks, key_chunks):
 
 def _inside(t_ends, nt_raw):
     """Whether new times are within the key times' span (nan is not)."""
-    from ..interpolation import _plan_times
+    from ..splines import plan_times
 
     try:
-        _plan_times(t_ends, nt_raw)
+        plan_times(t_ends, nt_raw)
     except ValueError:
         return False
     return True
@@ -379,7 +382,8 @@ def spline(times, keys, new_times, method="bezier", chunks=None, order=0):
     >>> np.allclose(lazy.compute(), qa.spline(t, keys, nt), rtol=0, atol=1e-13)
     True
     """
-    from ..interpolation import _SPLINE, _times
+    from .._validate import key_times
+    from ..splines import check_method
 
     if method == "cubic":
         raise ValueError("Expected `method` to be one of ['bezier', 'nlerp', 'slerp', 'squad'] in quatarray.dask, "
@@ -387,8 +391,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None, order=0):
                          "key windows cannot give exactly; call quatarray.spline on the keys in memory.")
     order = spline_order(order)
     width = 3 if order else 4
-    if method not in _SPLINE:
-        raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
+    check_method(method)
     x = as_dask(keys, "keys", Q)
     if x.ndim != 2:
         raise ValueError(f"Expected `keys` to have shape (K, 4), got {tuple(x.shape)}.")
@@ -402,7 +405,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None, order=0):
     if isinstance(times, da.Array):
         plan = _plan_lazy_times(times, k, new_times, chunks, x.chunks[0])
     else:
-        plan = _plan_given_times(_times(times, k), new_times, chunks, x.chunks[0])
+        plan = _plan_given_times(key_times(times, k), new_times, chunks, x.chunks[0])
     parts, sizes, segs, deps, times_window, origin = plan
     # a fresh name rather than a hash of (maybe 10⁸) new times: hashing them cost more than
     # building the graph, and two calls then never share results
