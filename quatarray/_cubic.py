@@ -20,10 +20,10 @@ keys' type, as scipy computes). Then ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
 c2 = ω_n, c1 = (3r − 2hω_n − hρ'_n)/h², c0 = (−2r + hω_n + hρ'_n)/h³,
 ρ'_n = J(r_n)⁻¹ ω_{n+1}.
 
-Evaluation (:data:`_EVAL`, one kernel per order, in the keys' float type):
-the value is q_n ⊗ Exp(ρ), the angular velocity J(ρ)ρ' and the angular
-acceleration J(ρ)ρ'' + N(ρ, ρ') (body frame, radians per time unit: scipy's
-``RotationSpline(t, r)(new_t, order)``).
+Evaluation (``_eval_cubic`` in :mod:`quatarray.splines`, one kernel per
+order, in the keys' float type): the value is q_n ⊗ Exp(ρ), the angular
+velocity J(ρ)ρ' and the angular acceleration J(ρ)ρ'' + N(ρ, ρ') (body frame,
+radians per time unit: scipy's ``RotationSpline(t, r)(new_t, order)``).
 """
 
 import math
@@ -31,11 +31,9 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, inline, kernel, like, prange, rowloop, specialise
+from ._jit import element, inline, kernel, specialise
 from ._mat33 import cofactor33, det33, matmul, matvec, scale9
-from ._rates import acc_coeffs, inv_coeff, jac, jac_coeffs, jac_dot, log_arc, qexp_half
-from ._trig import sincos
-from .interpolation import BLOCK, ld1, st1, ld4flat, next_run, st4flat
+from ._rates import acc_coeffs, inv_coeff, jac_coeffs, jac_dot, log_arc
 
 MAX_ITER = 10  # scipy's RotationSpline.MAX_ITER
 TOL = 1e-9  # and its TOL
@@ -179,61 +177,6 @@ def _setup(q, dt, coef):
     return passes
 
 
-ORDER = 0  # rebound in each order's copy of _eval (see _EVAL)
-
-
-def _eval(times, new_t, keys, coef, out):
-    """Samples of the curve (ORDER 0: quaternions, flat (4m,)), its angular velocity
-    (1) or acceleration (2) (flat (3m,)) at `new_t` (any order), segment by segment:
-    each run of samples in one segment reads the segment's key and coefficients once."""
-    m = new_t.shape[0]
-    x0 = like(coef, 0.0)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            qn = ld4flat(keys, sg)
-            b = NCOEF * sg
-            c0 = (coef[b], coef[b + 1], coef[b + 2])
-            c1 = (coef[b + 3], coef[b + 4], coef[b + 5])
-            c2 = (coef[b + 6], coef[b + 7], coef[b + 8])
-            for i in range(j, e):
-                tau = like(x0, ld1(new_t, i) - t0)
-                rv = (((c0[0] * tau + c1[0]) * tau + c2[0]) * tau, ((c0[1] * tau + c1[1]) * tau + c2[1]) * tau,
-                      ((c0[2] * tau + c1[2]) * tau + c2[2]) * tau)
-                n2 = rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]
-                hs, hc = sincos(like(x0, 0.5) * np.sqrt(n2))
-                if ORDER == 0:
-                    st4flat(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
-                else:
-                    three = like(x0, 3.0)
-                    two = like(x0, 2.0)
-                    rd = ((three * c0[0] * tau + two * c1[0]) * tau + c2[0],
-                          (three * c0[1] * tau + two * c1[1]) * tau + c2[1],
-                          (three * c0[2] * tau + two * c1[2]) * tau + c2[2])
-                    k1, k2 = jac_coeffs(n2, hs, hc)
-                    if ORDER == 1:
-                        v = jac(rv, k1, k2, rd)
-                    else:
-                        six = like(x0, 6.0)
-                        rdd = (six * c0[0] * tau + two * c1[0], six * c0[1] * tau + two * c1[1],
-                               six * c0[2] * tau + two * c1[2])
-                        j1, j2 = acc_coeffs(n2, hs, hc)
-                        a = jac(rv, k1, k2, rdd)
-                        nl = jac_dot(rv, rd, j1, j2, k2)
-                        v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
-                    st1(out, 3 * i, v[0])
-                    st1(out, 3 * i + 1, v[1])
-                    st1(out, 3 * i + 2, v[2])
-            j = e
-
-
-_EVAL = {order: rowloop(rows=1)(specialise(_eval, f"_{order}", ORDER=order)) for order in (0, 1, 2)}
-
-
 def coefficients(t, q):
     """(K−1, 9) float64 coefficients of the cubic spline through unit, unflipped keys
     `q` at float64 times `t`, and the number of rate passes."""
@@ -241,17 +184,3 @@ def coefficients(t, q):
     coef = np.empty((q.shape[0] - 1, NCOEF))
     passes = _setup(q64, np.diff(t), coef)
     return coef, passes
-
-
-def cubic(t, nt, q, order=0):
-    """``spline(method="cubic", order=order)`` on float64 times `t`, new times `nt`
-    (as :func:`quatarray.interpolation._plan_times` gives them) and unit, unflipped keys
-    `q`: quaternions ``nt.shape + (4,)`` (order 0) or vectors ``nt.shape + (3,)``, in
-    the keys' float type."""
-    coef, _ = coefficients(t, q)
-    flat_nt = np.ascontiguousarray(nt.reshape(-1))
-    width = 4 if order == 0 else 3
-    out = np.empty(flat_nt.shape[0] * width, q.dtype)
-    if out.shape[0]:
-        _EVAL[order](t, flat_nt, np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1), out)
-    return out.reshape(nt.shape + (width,))

@@ -39,10 +39,9 @@ needed beyond those of the curve's value (one atan2 per arc, one sincos).
 
 import numpy as np
 
-from ._elements import cross, qconj, qdot, qmul, qrotate_raw
-from ._jit import inline, like, prange, rowloop, specialise
+from ._elements import cross, qconj, qmul, qrotate_raw
+from ._jit import inline, like
 from ._trig import atan2, sincos
-from .interpolation import BLOCK, NSEG, arc_slerp, ld1, st1, next_run, seg_arc, seg_keys
 
 SMALL2 = 0.0625  # n² below which the series are used (n < 0.25: their terms to n¹⁰ are exact to 1e-17 there)
 TINY2 = 1e-6  # n² below which sin(n/2)/n takes its series (it does not cancel: only 0/0 is avoided)
@@ -231,86 +230,3 @@ def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     return s, ws, gs
 
 
-
-# --------------------------------------------------------------------------
-# evaluation loops over a spline's segment table (the table of
-# quatarray.interpolation._segments: q_n, two controls, q_{n+1} at columns
-# 0, 4, 8, 12, fixed arcs (θ, v) at 16, 21, 26)
-
-KIND = 1  # 1 bezier, 2 squad, 0 slerp, 3 nlerp: rebound in each copy (see RATES)
-ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy
-
-
-@inline
-def _arc_rate(seg, n, c, p):
-    a = seg_arc(seg, n, c)
-    return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
-
-
-def _eval_rates(times, new_t, seg, out):
-    """Angular velocity (``ORDER`` 1) or acceleration (2) of method ``KIND``'s curve
-    at `new_t` (any order), flat (3m,), segment by segment as the value loops."""
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)
-    zero3 = (x0, x0, x0)
-    one = like(x0, 1.0)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            q0, a, b, q1 = seg_keys(seg, n)
-            inv_h = like(x0, 1.0 / h)
-            scale = inv_h if ORDER == 1 else inv_h * inv_h
-            # the rates of the table's fixed arcs (those a method does not have are not used)
-            w0 = _arc_rate(seg, n, 16, q0)
-            w1 = _arc_rate(seg, n, 21, a)
-            w2 = _arc_rate(seg, n, 26, b)
-            for i in range(j, e):
-                u = like(x0, (ld1(new_t, i) - t0) / h)
-                if KIND == 0:
-                    v = w0 if ORDER == 1 else zero3
-                if KIND == 3:
-                    c = (q0[0] + u * (q1[0] - q0[0]), q0[1] + u * (q1[1] - q0[1]), q0[2] + u * (q1[2] - q0[2]),
-                         q0[3] + u * (q1[3] - q0[3]))
-                    dq = (q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2], q1[3] - q0[3])
-                    cc = qdot(c, c)
-                    d = qmul(qconj(c), dq)
-                    f = like(x0, 2.0) / cc
-                    v = (f * d[1], f * d[2], f * d[3])
-                    if ORDER == 2:
-                        v = _vscale(v, -like(x0, 2.0) * qdot(c, dq) / cc)
-                if KIND == 2:
-                    pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
-                    ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
-                    w = like(x0, 2.0) * u * (one - u)
-                    dw = like(x0, 2.0) - like(x0, 4.0) * u
-                    if ORDER == 1:
-                        v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
-                    else:
-                        v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
-                if KIND == 1:
-                    p01 = arc_slerp(q0, a, seg_arc(seg, n, 16), u)
-                    p12 = arc_slerp(a, b, seg_arc(seg, n, 21), u)
-                    p23 = arc_slerp(b, q1, seg_arc(seg, n, 26), u)
-                    if ORDER == 1:
-                        s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
-                        s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
-                        v = slerp_rates(s012, w012, s123, w123, u, one)[1]
-                    else:
-                        s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
-                        s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
-                        v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
-                st1(out, 3 * i, v[0] * scale)
-                st1(out, 3 * i + 1, v[1] * scale)
-                st1(out, 3 * i + 2, v[2] * scale)
-            j = e
-
-
-_KINDS = {"bezier": 1, "squad": 2, "slerp": 0, "nlerp": 3}
-RATES = {(m, order): rowloop(rows=1)(specialise(_eval_rates, f"_{m}_{order}", KIND=kind, ORDER=order))
-         for m, kind in _KINDS.items() for order in (1, 2)}
