@@ -149,8 +149,8 @@ def test_spline_bad_inputs(rng):
         qa.spline(np.arange(5.0), keys[:, :3], [0.5])
     with pytest.raises(ValueError, match="at least 2"):
         qa.spline([0.0], keys[:1], [0.0])
-    with pytest.raises(ValueError, match="method"):
-        qa.spline(np.arange(5.0), keys, [0.5], method="cubic")
+    with pytest.raises(ValueError, match="method"):  # (not "cubic": scipy's RotationSpline, tests/test_cubic.py)
+        qa.spline(np.arange(5.0), keys, [0.5], method="hermite")
 
 
 # ---------------------------------------------------------------------------
