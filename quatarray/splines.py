@@ -16,11 +16,11 @@ arcs its table rows hold: a branch of :func:`_segments`), ``controls(q, t)``
 method plugs in with one row there, a ``KIND`` branch in :func:`_segments` if it
 needs other arcs, and its loop; the whole-table and the piecewise kernels of
 each method are derived from the row (``_SEGMENTS``, ``_PIECES``), and so are
-its rate loops (``order`` 1 and 2: :func:`_eval_rates` on the whole table,
+its rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table,
 ``_RATES``) when its ``KIND`` is one of theirs. A method whose curve is not a
 table of independent segments gives ``resample(t, nt, q, order)`` instead and
 does everything itself: ``"cubic"``, scipy's RotationSpline, whose rates come
-from one system over all keys (:mod:`quatarray._cubic`, :func:`_eval_cubic`).
+from one system over all keys (:mod:`quatarray._cubic`, :func:`_run_cubic`).
 
 Internal API (for :mod:`quatarray.dask`; no leading underscore)
 ----------------------------------------------------------------
@@ -215,46 +215,62 @@ def seg_keys(seg, n):
 # run's samples -- loads of u, polynomial trig, flat stores -- runs as SIMD.
 
 
-@rowloop(rows=1)
-def _eval_slerp(times, new_t, seg, out):
+RUN = None  # the per-run body of each copy of _each_run
+
+
+def _each_run(times, new_t, data, out):
+    """The evaluation loop of a method whose ``RUN`` is rebound (see ``_eval_slerp`` &c.):
+    the samples in blocks of BLOCK (the prange), each block run by run (:func:`next_run`);
+    ``RUN(times, new_t, data, out, sg, j, e)`` evaluates samples j … e − 1, all in
+    segment sg (`data`: the flat table, or what the method's loop reads instead)."""
     m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            c = seg_arc(seg, n, 16)
-            for i in range(j, e):
-                store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+            RUN(times, new_t, data, out, sg, j, e)
             j = e
 
 
-@rowloop(rows=1)
-def _eval_nlerp(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
-            j = e
+def _each_run_of(run, name):
+    """The evaluation loop (a RowLoop over the new times) whose runs `run` evaluates."""
+    return rowloop(rows=1)(specialise(_each_run, name, RUN=run))
+
+
+@inline
+def _segment(times, seg, sg):
+    """(t0, h, n): the start and length of segment sg, and where its table row starts;
+    and x0, a zero of the output type (like() on an array inside the loop stops the vectoriser)."""
+    t0 = times[sg]
+    return t0, times[sg + 1] - t0, NSEG * sg, like(seg, 0.0)
+
+
+@inline
+def _run_slerp(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    c = seg_arc(seg, n, 16)
+    for i in range(j, e):
+        store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+
+
+_eval_slerp = _each_run_of(_run_slerp, "_slerp")
+
+
+@inline
+def _run_nlerp(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
+
+
+_eval_nlerp = _each_run_of(_run_nlerp, "_nlerp")
 
 
 @inline
@@ -317,28 +333,20 @@ def _eval_bezier(times, new_t, seg, out):
         bezier_tile(tile, u, res, rows, count, out)
 
 
-@rowloop(rows=1)
-def _eval_squad(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            q0, s0, s1, q1 = seg_keys(seg, n)
-            c0 = seg_arc(seg, n, 16)
-            c1 = seg_arc(seg, n, 21)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                pq = arc_slerp(q0, q1, c0, t)
-                ps = arc_slerp(s0, s1, c1, t)
-                store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
-            j = e
+@inline
+def _run_squad(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    q0, s0, s1, q1 = seg_keys(seg, n)
+    c0 = seg_arc(seg, n, 16)
+    c1 = seg_arc(seg, n, 21)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        pq = arc_slerp(q0, q1, c0, t)
+        ps = arc_slerp(s0, s1, c1, t)
+        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
+
+
+_eval_squad = _each_run_of(_run_squad, "_squad")
 
 
 # Sorted new times go through the table piece by piece: each piece of
@@ -393,7 +401,7 @@ def _arc_rate(seg, n, c, p):
     return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
 
 
-ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy of _eval_rates, _eval_cubic
+ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy of _run_rates, _run_cubic
 
 
 @inline
@@ -402,121 +410,104 @@ def _arc_rate(seg, n, c, p):
     return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
 
 
-def _eval_rates(times, new_t, seg, out):
+def _run_rates(times, new_t, seg, out, sg, j, e):
     """Angular velocity (``ORDER`` 1) or acceleration (2) of the curve of the method
-    whose table ``KIND`` is (see :func:`_segments`) at `new_t` (any order), flat (3m,),
-    segment by segment as the value loops: the derivative rules of :mod:`quatarray._rates`
-    on the table's fixed arcs (their constant rates) and the slerps of moving ends above them."""
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)
+    whose table ``KIND`` is (see :func:`_segments`) on one run of samples (`out` flat
+    (3m,)): the derivative rules of :mod:`quatarray._rates` on the table's fixed arcs
+    (their constant rates) and the slerps of moving ends above them."""
+    t0, h, n, x0 = _segment(times, seg, sg)
     zero3 = (x0, x0, x0)
     one = like(x0, 1.0)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            q0, a, b, q1 = seg_keys(seg, n)
-            inv_h = like(x0, 1.0 / h)
-            scale = inv_h if ORDER == 1 else inv_h * inv_h
-            # the rates of the table's fixed arcs (those a method does not have are not used)
-            w0 = _arc_rate(seg, n, 16, q0)
-            w1 = _arc_rate(seg, n, 21, a)
-            w2 = _arc_rate(seg, n, 26, b)
-            for i in range(j, e):
-                u = like(x0, (load1(new_t, i) - t0) / h)
-                if KIND == 0:
-                    v = w0 if ORDER == 1 else zero3
-                if KIND == 3:
-                    c = (q0[0] + u * (q1[0] - q0[0]), q0[1] + u * (q1[1] - q0[1]), q0[2] + u * (q1[2] - q0[2]),
-                         q0[3] + u * (q1[3] - q0[3]))
-                    dq = (q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2], q1[3] - q0[3])
-                    cc = E.qdot(c, c)
-                    d = E.qmul(E.qconj(c), dq)
-                    f = like(x0, 2.0) / cc
-                    v = (f * d[1], f * d[2], f * d[3])
-                    if ORDER == 2:
-                        v = _vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
-                if KIND == 2:
-                    pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
-                    ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
-                    w = like(x0, 2.0) * u * (one - u)
-                    dw = like(x0, 2.0) - like(x0, 4.0) * u
-                    if ORDER == 1:
-                        v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
-                    else:
-                        v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
-                if KIND == 1:
-                    p01 = arc_slerp(q0, a, seg_arc(seg, n, 16), u)
-                    p12 = arc_slerp(a, b, seg_arc(seg, n, 21), u)
-                    p23 = arc_slerp(b, q1, seg_arc(seg, n, 26), u)
-                    if ORDER == 1:
-                        s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
-                        s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
-                        v = slerp_rates(s012, w012, s123, w123, u, one)[1]
-                    else:
-                        s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
-                        s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
-                        v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
-                store1(out, 3 * i, v[0] * scale)
-                store1(out, 3 * i + 1, v[1] * scale)
-                store1(out, 3 * i + 2, v[2] * scale)
-            j = e
+    q0, a, b, q1 = seg_keys(seg, n)
+    inv_h = like(x0, 1.0 / h)
+    scale = inv_h if ORDER == 1 else inv_h * inv_h
+    # the rates of the table's fixed arcs (those a method does not have are not used)
+    w0 = _arc_rate(seg, n, 16, q0)
+    w1 = _arc_rate(seg, n, 21, a)
+    w2 = _arc_rate(seg, n, 26, b)
+    for i in range(j, e):
+        u = like(x0, (load1(new_t, i) - t0) / h)
+        if KIND == 0:
+            v = w0 if ORDER == 1 else zero3
+        if KIND == 3:
+            c = (q0[0] + u * (q1[0] - q0[0]), q0[1] + u * (q1[1] - q0[1]), q0[2] + u * (q1[2] - q0[2]),
+                 q0[3] + u * (q1[3] - q0[3]))
+            dq = (q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2], q1[3] - q0[3])
+            cc = E.qdot(c, c)
+            d = E.qmul(E.qconj(c), dq)
+            f = like(x0, 2.0) / cc
+            v = (f * d[1], f * d[2], f * d[3])
+            if ORDER == 2:
+                v = _vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
+        if KIND == 2:
+            pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
+            ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
+            w = like(x0, 2.0) * u * (one - u)
+            dw = like(x0, 2.0) - like(x0, 4.0) * u
+            if ORDER == 1:
+                v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
+            else:
+                v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
+        if KIND == 1:
+            p01 = arc_slerp(q0, a, seg_arc(seg, n, 16), u)
+            p12 = arc_slerp(a, b, seg_arc(seg, n, 21), u)
+            p23 = arc_slerp(b, q1, seg_arc(seg, n, 26), u)
+            if ORDER == 1:
+                s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
+                s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
+                v = slerp_rates(s012, w012, s123, w123, u, one)[1]
+            else:
+                s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
+                s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
+                v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
+        store1(out, 3 * i, v[0] * scale)
+        store1(out, 3 * i + 1, v[1] * scale)
+        store1(out, 3 * i + 2, v[2] * scale)
 
 
-def _eval_cubic(times, new_t, keys, coef, out):
+
+def _run_cubic(times, new_t, data, out, sg, j, e):
     """``method="cubic"``: samples of the curve (``ORDER`` 0: quaternions, flat (4m,)),
-    its angular velocity (1) or acceleration (2) (flat (3m,)) at `new_t` (any order),
-    from the keys (flat (4K,)) and the segments' coefficients (flat (9(K − 1),), see
-    :mod:`quatarray._cubic`), segment by segment: each run of samples in one segment
-    reads the segment's key and coefficients once."""
-    m = new_t.shape[0]
+    its angular velocity (1) or acceleration (2) (flat (3m,)) on one run of samples,
+    from `data` = (the keys, flat (4K,); the segments' coefficients, flat (9(K − 1),), see
+    :mod:`quatarray._cubic`): the segment's key and coefficients are read once."""
+    keys, coef = data
+    t0 = times[sg]
     x0 = like(coef, 0.0)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            qn = load4(keys, sg)
-            b = _cubic.NCOEF * sg
-            c0 = (coef[b], coef[b + 1], coef[b + 2])
-            c1 = (coef[b + 3], coef[b + 4], coef[b + 5])
-            c2 = (coef[b + 6], coef[b + 7], coef[b + 8])
-            for i in range(j, e):
-                tau = like(x0, load1(new_t, i) - t0)
-                rv = (((c0[0] * tau + c1[0]) * tau + c2[0]) * tau, ((c0[1] * tau + c1[1]) * tau + c2[1]) * tau,
-                      ((c0[2] * tau + c1[2]) * tau + c2[2]) * tau)
-                n2 = rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]
-                hs, hc = sincos(like(x0, 0.5) * np.sqrt(n2))
-                if ORDER == 0:
-                    store4(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
-                else:
-                    three = like(x0, 3.0)
-                    two = like(x0, 2.0)
-                    rd = ((three * c0[0] * tau + two * c1[0]) * tau + c2[0],
-                          (three * c0[1] * tau + two * c1[1]) * tau + c2[1],
-                          (three * c0[2] * tau + two * c1[2]) * tau + c2[2])
-                    k1, k2 = jac_coeffs(n2, hs, hc)
-                    if ORDER == 1:
-                        v = jac(rv, k1, k2, rd)
-                    else:
-                        six = like(x0, 6.0)
-                        rdd = (six * c0[0] * tau + two * c1[0], six * c0[1] * tau + two * c1[1],
-                               six * c0[2] * tau + two * c1[2])
-                        j1, j2 = acc_coeffs(n2, hs, hc)
-                        a = jac(rv, k1, k2, rdd)
-                        nl = jac_dot(rv, rd, j1, j2, k2)
-                        v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
-                    store1(out, 3 * i, v[0])
-                    store1(out, 3 * i + 1, v[1])
-                    store1(out, 3 * i + 2, v[2])
-            j = e
+    qn = load4(keys, sg)
+    b = _cubic.NCOEF * sg
+    c0 = (coef[b], coef[b + 1], coef[b + 2])
+    c1 = (coef[b + 3], coef[b + 4], coef[b + 5])
+    c2 = (coef[b + 6], coef[b + 7], coef[b + 8])
+    for i in range(j, e):
+        tau = like(x0, load1(new_t, i) - t0)
+        rv = (((c0[0] * tau + c1[0]) * tau + c2[0]) * tau, ((c0[1] * tau + c1[1]) * tau + c2[1]) * tau,
+              ((c0[2] * tau + c1[2]) * tau + c2[2]) * tau)
+        n2 = rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]
+        hs, hc = sincos(like(x0, 0.5) * np.sqrt(n2))
+        if ORDER == 0:
+            store4(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
+        else:
+            three = like(x0, 3.0)
+            two = like(x0, 2.0)
+            rd = ((three * c0[0] * tau + two * c1[0]) * tau + c2[0],
+                  (three * c0[1] * tau + two * c1[1]) * tau + c2[1],
+                  (three * c0[2] * tau + two * c1[2]) * tau + c2[2])
+            k1, k2 = jac_coeffs(n2, hs, hc)
+            if ORDER == 1:
+                v = jac(rv, k1, k2, rd)
+            else:
+                six = like(x0, 6.0)
+                rdd = (six * c0[0] * tau + two * c1[0], six * c0[1] * tau + two * c1[1],
+                       six * c0[2] * tau + two * c1[2])
+                j1, j2 = acc_coeffs(n2, hs, hc)
+                a = jac(rv, k1, k2, rdd)
+                nl = jac_dot(rv, rd, j1, j2, k2)
+                v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
+            store1(out, 3 * i, v[0])
+            store1(out, 3 * i + 1, v[1])
+            store1(out, 3 * i + 2, v[2])
+
 
 
 def _resample_cubic(t, nt, q, order):
@@ -528,7 +519,7 @@ def _resample_cubic(t, nt, q, order):
     width = 3 if order else 4
     out = np.empty(flat_nt.shape[0] * width, q.dtype)
     if out.shape[0]:
-        _EVAL_CUBIC[order](t, flat_nt, np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1), out)
+        _EVAL_CUBIC[order](t, flat_nt, (np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1)), out)
     return out.reshape(nt.shape + (width,))
 
 
@@ -755,6 +746,8 @@ _PIECES = {
     for name, m in _TABLED.items()
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
-_RATES = {(name, order): rowloop(rows=1)(specialise(_eval_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order))
+_RATES = {(name, order): _each_run_of(inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)),
+                                      f"_rates_{name}_{order}")
           for name, m in _TABLED.items() for order in (1, 2)}
-_EVAL_CUBIC = {order: rowloop(rows=1)(specialise(_eval_cubic, f"_{order}", ORDER=order)) for order in (0, 1, 2)}
+_EVAL_CUBIC = {order: _each_run_of(inline(specialise(_run_cubic, f"_{order}", ORDER=order)), f"_cubic_{order}")
+               for order in (0, 1, 2)}

@@ -123,21 +123,3 @@ def test_cubic_shapes_and_empty(rng):
                                   qa.spline(t, keys, nt.reshape(-1), method="cubic", order=1))
     assert qa.spline(t, keys, np.empty(0), method="cubic").shape == (0, 4)
     assert qa.spline(t, keys, np.empty(0), method="cubic", order=1).shape == (0, 3)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("order", [0, 1, 2])
-def test_cubic_parallel_variants_agree_with_serial(monkeypatch, order):
-    from quatarray import _jit
-
-    rng = np.random.default_rng(44)
-    times = np.cumsum(rng.uniform(0.5, 1.5, 300))
-    keys = qa.random(300, rng=6)
-    new = rng.uniform(times[0], times[-1], 5000)
-    for dtype in (np.float64, np.float32):
-        for nt in (np.sort(new), new):
-            monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 200000)
-            serial = qa.spline(times, keys.astype(dtype), nt, method="cubic", order=order)
-            monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 0)
-            np.testing.assert_array_equal(qa.spline(times, keys.astype(dtype), nt, method="cubic", order=order),
-                                          serial)

@@ -182,22 +182,3 @@ def test_constant_rate_keys(k, seed, method, even):
     np.testing.assert_allclose(qa.spline(times, keys, nt, method=method, order=1), np.broadcast_to(omega, (20, 3)),
                                rtol=0, atol=1e-12)
     np.testing.assert_allclose(qa.spline(times, keys, nt, method=method, order=2), 0, atol=1e-11)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
-def test_rates_parallel_variants_agree_with_serial(monkeypatch, method):
-    from quatarray import _jit
-
-    rng = np.random.default_rng(45)
-    times = np.cumsum(rng.uniform(0.5, 1.5, 300))
-    keys = qa.random(300, rng=8)
-    new = rng.uniform(times[0], times[-1], 5000)
-    for dtype in (np.float64, np.float32):
-        for nt in (np.sort(new), new):
-            for order in (1, 2):
-                monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 200000)
-                serial = qa.spline(times, keys.astype(dtype), nt, method=method, order=order)
-                monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 0)
-                np.testing.assert_array_equal(qa.spline(times, keys.astype(dtype), nt, method=method, order=order),
-                                              serial)
