@@ -69,7 +69,7 @@ def _sub9(a, b):
 
 # the keys' steps through libm's atan2: the setup loop is not SIMD, and the polynomial
 # atan2 of the evaluation loops took LLVM 0.5 s more to compile here
-_log_step = inline(specialise(getattr(log_arc, "py_func", log_arc), "_libm", atan2=math.atan2))  # (plain without the JIT)
+_log_step = inline(specialise(getattr(log_arc, "py_func", log_arc), "_libm", atan2=math.atan2))  # plain: no JIT
 
 
 @element

@@ -97,7 +97,8 @@ def test_rates_at_keys_ends_and_dtypes(rng, method, dtype):
         r = qa.spline(times, keys, times, method=method, order=order)  # both ends and every key
         assert r.dtype == dtype and r.shape == (6, 3) and np.isfinite(r).all()
         ref = qa.spline(times, keys.astype(np.float64), times, method=method, order=order)
-        np.testing.assert_allclose(r, ref, rtol=0, atol=(1e-13 if dtype == np.float64 else 3e-4) * (1 + np.abs(ref).max()))
+        tol = 1e-13 if dtype == np.float64 else 3e-4
+        np.testing.assert_allclose(r, ref, rtol=0, atol=tol * (1 + np.abs(ref).max()))
     nt = rng.uniform(times[0], times[-1], (4, 5))
     assert qa.spline(times, keys, nt, method=method, order=1).shape == (4, 5, 3)
     assert qa.spline(times, keys, np.empty(0), method=method, order=2).shape == (0, 3)
