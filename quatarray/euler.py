@@ -49,12 +49,12 @@ _GIMBAL = (
 
 
 @element
-def sincos(x):
-    """:func:`quatarray._trig.sincos` as a call that LLVM inlines: inlined at
-    numba-IR level three times into :func:`_from_euler`'s loop it leaves
-    branches that stop the vectoriser (about 2× slower in float64, 4× in
-    float32), while this small function is inlined by LLVM after its
-    selects are formed."""
+def sincos_call(x):
+    """:func:`quatarray._trig.sincos` as an element function of its own (an
+    LLVM call that LLVM inlines into :func:`_from_euler`'s loop after its
+    selects are formed). Inlined at numba-IR level three times into that loop
+    it left branches that stop the vectoriser (about 2× slower in float64, 4×
+    in float32)."""
     return _trig.sincos(x)
 
 
@@ -174,9 +174,9 @@ def _from_euler(angles, a0, a1, a2, intrinsic, unit, out, far):
         h0 = af[3 * r] * k
         h1 = af[3 * r + 1] * k
         h2 = af[3 * r + 2] * k
-        s0, c0 = sincos(h0)
-        s1, c1 = sincos(h1)
-        s2, c2 = sincos(h2)
+        s0, c0 = sincos_call(h0)
+        s1, c1 = sincos_call(h1)
+        s2, c2 = sincos_call(h2)
         e0 = axis_quat(a0, s0, c0)
         e1 = axis_quat(a1, s1, c1)
         e2 = axis_quat(a2, s2, c2)
@@ -269,7 +269,7 @@ def _parse_from_seq(seq):
     raise ValueError(f"{_ALLOWED_SHORT}; got {seq!r}.")
 
 
-def _rows(a, core):
+def _contiguous_rows(a, core):
     """``a`` as a C-contiguous ``(n,) + core`` array (a copy only when ``a`` is strided)."""
     return np.ascontiguousarray(a.reshape((-1,) + core))
 
@@ -340,7 +340,7 @@ def euler_locked(q, seq, degrees=False):
     for callers that count lock across many calls or threads (the command line)."""
     _, _, params = _parse_seq(seq)
     a = check_core(as_float(q, "q"), "q", (4,))
-    flat = _rows(a, (4,))
+    flat = _contiguous_rows(a, (4,))
     out = np.empty((flat.shape[0], 3), a.dtype)
     flags = np.empty(flat.shape[0], np.bool_)
     _as_euler(flat, *params, 180.0 / math.pi if degrees else 1.0, out, flags)
@@ -384,7 +384,7 @@ def from_euler(seq, angles, degrees=False):
     if k == 1 and a.ndim == 0:
         a = a[None]
     a = check_core(a, "angles", (k,))
-    flat = _rows(a, (k,))
+    flat = _contiguous_rows(a, (k,))
     if k < 3:  # zero angles about the padding axis: an exact identity factor
         flat = np.concatenate([flat, np.zeros((flat.shape[0], 3 - k), flat.dtype)], axis=1)
     out = np.empty((flat.shape[0], 4), a.dtype)
