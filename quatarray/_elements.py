@@ -221,7 +221,7 @@ class FarRows:
     ``scaled`` to read. A call returns 1 when the second pass ran, else 0.
 
     `name` names the compiled copies (their cache files, kept beside
-    `plain`'s module).
+    `plain`'s module); ``parallel=False`` keeps the first pass serial.
 
     Examples
     --------
@@ -246,8 +246,8 @@ class FarRows:
     # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
     # keeps LLVM from vectorising the loop, and so does numba-IR inlining of plain.)
 
-    def __init__(self, plain, scaled, name):
-        self.first = rowloop(specialise(_far_rows, "_" + name, home=plain, _PLAIN=plain))
+    def __init__(self, plain, scaled, name, parallel=True):
+        self.first = rowloop(specialise(_far_rows, "_" + name, home=plain, _PLAIN=plain), parallel=parallel)
         self.again = RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
         self.__name__ = "_" + name
 

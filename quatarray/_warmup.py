@@ -54,8 +54,9 @@ def _samples(dtype, n=8, k=6):
         return (a / np.linalg.norm(a, axis=1, keepdims=True)).astype(d)
 
     p, q = unit(n), unit(n)
+    big = 1e200 if d == np.float64 else 1e30
     far = p.copy()  # a row far from unit scale: the second pass of E.FarRows kernels
-    far[1] *= 1e200 if d == np.float64 else 1e30
+    far[1] *= big
     w, x, y, z = p.T.astype(np.float64)
     m = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -73,6 +74,7 @@ def _samples(dtype, n=8, k=6):
         axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
         eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
         keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t), far=far,
+        far_m=np.concatenate([m[:1] * big, m[1:]]).astype(d),
     )
 
 
@@ -176,7 +178,8 @@ TABLE = {
     # conversions
     "as_matrix": _f("as_matrix", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_matrix": _f("from_matrix", lambda f, s: (
-        _each(f, s.m, out=True), _each(f, s.m, assume_valid=True, out=True), f(2 * s.m))),
+        _each(f, s.m, out=True), _each(f, s.m, assume_valid=True, out=True), f(2 * s.m),
+        _each(f, s.far_m, assume_valid=True, out=True))),
     "as_rotvec": _f("as_rotvec", lambda f, s: (
         _each(f, s.p, out=True), f(s.p, degrees=True), _each(f, s.far, out=True))),
     "from_rotvec": _f("from_rotvec", lambda f, s: (
@@ -194,10 +197,10 @@ TABLE = {
     "from_su2": _f("from_su2", lambda f, s: _each(f, s.su2, out=True)),
     # Euler angles (proper and Tait-Bryan, extrinsic and intrinsic; far angles take a second kernel)
     "as_euler": _f("as_euler", lambda f, s: [
-        (_each(f, s.p, seq), f(s.p, seq, degrees=True)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
+        (_each(f, s.p, seq), f(s.p, seq, degrees=True), _each(f, s.far, seq)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
     "from_euler": _f("from_euler", lambda f, s: [
         (_each(f, seq, s.eul), f(seq, s.eul, degrees=True), f(seq, 1e7 * s.eul)) for seq in ("xyz", "ZXZ")]),
-    "as_mrp": _f("as_mrp", lambda f, s: _each(f, s.p, out=True)),
+    "as_mrp": _f("as_mrp", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_mrp": _f("from_mrp", lambda f, s: _each(f, s.rv, out=True)),
     "as_gibbs": _f("as_gibbs", lambda f, s: _each(f, s.p, out=True)),
     "from_gibbs": _f("from_gibbs", lambda f, s: _each(f, s.rv, out=True)),

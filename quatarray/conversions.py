@@ -107,31 +107,32 @@ def polar33(a, eps):
     return x
 
 
-@element
-def shepperd(a):
-    """Unit quaternion of a rotation matrix (9-tuple), branching on the largest of
-    the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
-    the component picked by the branch comes out positive."""
+@inline
+def shepperd_raw(a):
+    """The quaternion of a rotation matrix (9-tuple), unnormalised (its norm is 4
+    times the largest of |w|, |x|, |y|, |z| for a rotation), choosing on the largest
+    of the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
+    the component picked comes out positive. Branch-free (the four candidates
+    share their sums; selects pick one), so the row loops vectorise."""
     one = like(a[0], 1.0)
     two = like(a[0], 2.0)
     tr = a[0] + a[4] + a[8]
-    choice = 0
-    best = a[0]
-    if a[4] > best:
-        choice, best = 1, a[4]
-    if a[8] > best:
-        choice, best = 2, a[8]
-    if tr > best:
-        choice = 3
-    if choice == 0:
-        q = (a[7] - a[5], one - tr + two * a[0], a[3] + a[1], a[6] + a[2])
-    elif choice == 1:
-        q = (a[2] - a[6], a[3] + a[1], one - tr + two * a[4], a[7] + a[5])
-    elif choice == 2:
-        q = (a[3] - a[1], a[6] + a[2], a[7] + a[5], one - tr + two * a[8])
-    else:
-        q = (one + tr, a[7] - a[5], a[2] - a[6], a[3] - a[1])
-    return E.qnormalize(q)
+    d10, s10, s20, d20, s21, d21 = a[3] - a[1], a[3] + a[1], a[6] + a[2], a[2] - a[6], a[7] + a[5], a[7] - a[5]
+    c1 = a[4] > a[0]  # the first largest of a[0], a[4], a[8], tr, as scipy's argmax
+    b1 = a[4] if c1 else a[0]
+    c2 = a[8] > b1
+    c3 = tr > (a[8] if c2 else b1)
+    q0 = (d21, one - tr + two * a[0], s10, s20)
+    q1 = (d20, s10, one - tr + two * a[4], s21)
+    q2 = (d10, s20, s21, one - tr + two * a[8])
+    return E.pick4(c3, (one + tr, d21, d20, d10), E.pick4(c2, q2, E.pick4(c1, q1, q0)))
+
+
+@element
+def shepperd(a):
+    """Unit quaternion of a rotation matrix (9-tuple): :func:`shepperd_raw`
+    normalised (any scale)."""
+    return E.qnormalize(shepperd_raw(a))
 
 
 @inline
@@ -262,10 +263,25 @@ def _from_matrix(m, out):
     return bad if bad < n else -1
 
 
-@rowloop
-def _from_matrix_valid(m, out):
-    for i in prange(m.shape[0]):
-        E.store4(out, i, shepperd(load33(m, i)))
+@inline
+def _from_matrix_valid_plain(i, args):
+    m, out = args
+    q = shepperd_raw(load33(m, i))
+    n2 = E.qdot(q, q)
+    r = like(n2, 1.0) / np.sqrt(n2)  # one division, not four
+    E.store4(out, i, (q[0] * r, q[1] * r, q[2] * r, q[3] * r))
+    return E.far_scale(n2)
+
+
+@inline
+def _from_matrix_valid_scaled(i, args):
+    m, out = args
+    q = shepperd_raw(load33(m, i))
+    if E.far_scale(E.qdot(q, q)):
+        E.store4(out, i, E.qnormalize(q))
+
+
+_from_matrix_valid = E.FarRows(_from_matrix_valid_plain, _from_matrix_valid_scaled, "from_matrix_valid")
 
 
 @inline

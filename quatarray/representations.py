@@ -274,12 +274,17 @@ def from_su2(m, out=None):
 def qmrp(q):
     """s·u / (|q| + |w|), s = −1 for w < 0: scipy's MRP of the shortest of ±q/|q|
     (|p| ≤ 1), for any scale of q (:func:`_elements.qscaled`); zero q gives nan."""
-    q = E.qscaled(q)[0]
+    return qmrp_raw(E.qscaled(q)[0])[0]
+
+
+@inline
+def qmrp_raw(q):
+    """(:func:`qmrp` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`."""
     w = q[0]
-    d = np.sqrt(E.qdot(q, q)) + abs(w)
-    k = like(w, 1.0) / d
+    n2 = E.qdot(q, q)
+    k = like(w, 1.0) / (np.sqrt(n2) + abs(w))
     k = -k if w < like(w, 0.0) else k
-    return (k * q[1], k * q[2], k * q[3])
+    return (k * q[1], k * q[2], k * q[3]), n2
 
 
 @inline
@@ -331,10 +336,24 @@ def gibbs_quat(g):
     return E.qnormalize((one, g[0], g[1], g[2]))
 
 
-@rowloop
-def _as_mrp(q, out):
-    for i in prange(q.shape[0]):
-        E.store3(out, i, qmrp(E.load4(q, i)))
+@inline
+def _as_mrp_plain(i, args):
+    q, out = args
+    p, n2 = qmrp_raw(E.load4(q, i))
+    E.store3(out, i, p)
+    return E.far_scale(n2)
+
+
+@inline
+def _as_mrp_scaled(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    if E.far_scale(E.qdot(a, a)):
+        E.store3(out, i, qmrp(a))
+
+
+# on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
+_as_mrp = E.FarRows(_as_mrp_plain, _as_mrp_scaled, "as_mrp")
 
 
 @rowloop
