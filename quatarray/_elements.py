@@ -202,6 +202,21 @@ def _far_rows_again(*args):
         _SCALED(i, args)
 
 
+def _redo(i, args):
+    # the scaled pass of redo(): each copy rebinds _STORE and _FORMULA
+    a = load4(args[0], i)
+    if far_scale(qdot(a, a)):
+        _STORE(args[-1], i, _FORMULA(a))
+
+
+def redo(store, formula, name):
+    """The ``scaled`` function of a :class:`FarRows` kernel whose first argument
+    is the quaternions q, whose last is the output, and whose far rows are
+    those of |q|²: ``store(out, i, formula(q_i))`` on those rows (`formula`
+    being the any-scale one, e.g. :func:`qinverse`)."""
+    return inline(specialise(_redo, "_" + name, home=formula, _STORE=store, _FORMULA=formula))
+
+
 class FarRows:
     """The batched loop of a formula that is exact only near unit scale, over
     the rows of its first argument; called like a :class:`quatarray._jit.RowLoop`.

@@ -46,15 +46,7 @@ def _inverse_plain(i, args):
     return f
 
 
-@inline
-def _inverse_scaled(i, args):
-    q, out = args
-    a = E.load4(q, i)
-    if E.far_scale(E.qdot(a, a)):
-        E.store4(out, i, E.qinverse(a))
-
-
-_inverse = E.FarRows(_inverse_plain, _inverse_scaled, "inverse")
+_inverse = E.FarRows(_inverse_plain, E.redo(E.store4, E.qinverse, "inverse"), "inverse")
 
 
 @inline
@@ -68,15 +60,7 @@ def _normalize_plain(i, args):
     return f
 
 
-@inline
-def _normalize_scaled(i, args):
-    q, out = args
-    a = E.load4(q, i)
-    if E.far_scale(E.qdot(a, a)):
-        E.store4(out, i, E.qnormalize(a))
-
-
-_normalize = E.FarRows(_normalize_plain, _normalize_scaled, "normalize")
+_normalize = E.FarRows(_normalize_plain, E.redo(E.store4, E.qnormalize, "normalize"), "normalize")
 
 
 @inline
@@ -120,15 +104,7 @@ def _log_plain(i, args):
     return f
 
 
-@inline
-def _log_scaled(i, args):
-    q, out = args
-    a = E.load4(q, i)
-    if E.far_scale(E.qdot(a, a)):
-        E.store4(out, i, E.qlog(a))
-
-
-_log = E.FarRows(_log_plain, _log_scaled, "log")
+_log = E.FarRows(_log_plain, E.redo(E.store4, E.qlog, "log"), "log")
 
 
 @rowloop

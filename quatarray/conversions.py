@@ -220,15 +220,7 @@ def _as_matrix_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
-def _as_matrix_scaled(i, args):
-    q, out = args
-    a = E.load4(q, i)
-    if E.far_scale(E.qdot(a, a)):
-        store33(out, i, E.qmatrix(a))
-
-
-_as_matrix = E.FarRows(_as_matrix_plain, _as_matrix_scaled, "as_matrix")
+_as_matrix = E.FarRows(_as_matrix_plain, E.redo(store33, E.qmatrix, "as_matrix"), "as_matrix")
 
 
 @rowloop

@@ -344,16 +344,8 @@ def _as_mrp_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
-def _as_mrp_scaled(i, args):
-    q, out = args
-    a = E.load4(q, i)
-    if E.far_scale(E.qdot(a, a)):
-        E.store3(out, i, qmrp(a))
-
-
 # on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
-_as_mrp = E.FarRows(_as_mrp_plain, _as_mrp_scaled, "as_mrp")
+_as_mrp = E.FarRows(_as_mrp_plain, E.redo(E.store3, qmrp, "as_mrp"), "as_mrp")
 
 
 @rowloop
