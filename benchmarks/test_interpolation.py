@@ -2,7 +2,11 @@
 
 Run: pytest benchmarks/test_interpolation.py --benchmark-only
 Groups: slerp (10⁶ pairs), spline-bezier (10⁴ keys → 10⁶ samples, against
-scipy RotationSpline and numpy-quaternion squad), spline-slerp (against scipy Slerp).
+scipy RotationSpline and numpy-quaternion squad), spline-slerp (against scipy Slerp),
+spline-cubic-order{0,1,2} (``method="cubic"``, scipy's C² curve, against scipy
+RotationSpline built and evaluated in the call, as quatarray's call does, and
+evaluated only), spline-rates (``order`` 0, 1, 2 of bezier and cubic side by side:
+the targets are cubic ≥ 10× scipy and order 1 within 2× of order 0).
 """
 
 import numpy as np
@@ -107,3 +111,37 @@ def test_spline_slerp_scipy(benchmark, stream):
     times, keys, new = stream
     sl = Slerp(times, Rotation.from_quat(keys, scalar_first=True))
     run(benchmark, lambda: sl(new))
+
+
+# ---- spline, cubic (scipy's RotationSpline) and the rates ----
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_spline_cubic_quatarray(benchmark, stream, order):
+    times, keys, new = stream
+    benchmark.group = f"spline-cubic-order{order}"
+    run(benchmark, lambda: qa.spline(times, keys, new, method="cubic", order=order))
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_spline_cubic_scipy_built_in_the_call(benchmark, stream, order):
+    times, keys, new = stream
+    benchmark.group = f"spline-cubic-order{order}"
+    r = Rotation.from_quat(keys, scalar_first=True)
+    run(benchmark, lambda: RotationSpline(times, r)(new, order))
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_spline_cubic_scipy_evaluated(benchmark, stream, order):
+    times, keys, new = stream
+    benchmark.group = f"spline-cubic-order{order}"
+    spl = RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))
+    run(benchmark, lambda: spl(new, order))
+
+
+@pytest.mark.benchmark(group="spline-rates")
+@pytest.mark.parametrize("method", ["bezier", "cubic", "squad", "slerp", "nlerp"])
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_spline_rates_quatarray(benchmark, stream, method, order):
+    times, keys, new = stream
+    run(benchmark, lambda: qa.spline(times, keys, new, method=method, order=order))

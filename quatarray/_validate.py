@@ -144,6 +144,13 @@ def as_times(x, name):
     return t
 
 
+def spline_order(order):
+    """A spline's derivative `order`: 0, 1 or 2 as a Python int (not a bool, not a float)."""
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)) or order not in (0, 1, 2):
+        raise ValueError(f"Expected `order` to be 0, 1 or 2, got {order!r}.")
+    return int(order)
+
+
 def float_dtype(dtype):
     """A `dtype` argument checked to be float32 or float64."""
     d = np.dtype(dtype)

@@ -140,10 +140,10 @@ def _interpolate(qa, s):
         qa.interpolate(x[0], y[0], s.t)
 
 
-def _spline(method, new):
+def _spline(method, new, order=0):
     def run(qa, s):
         for times in (s.times, s.times.astype(s.dtype)):
-            qa.spline(times, s.keys, getattr(s, new).astype(times.dtype), method=method)
+            qa.spline(times, s.keys, getattr(s, new).astype(times.dtype), method=method, order=order)
 
     return run
 
@@ -228,6 +228,11 @@ TABLE = {
     "spline[nlerp, unsorted]": _spline("nlerp", "new_unsorted"),
     "spline[squad]": _spline("squad", "new_sorted"),
     "spline[squad, unsorted]": _spline("squad", "new_unsorted"),
+    "spline[cubic]": _spline("cubic", "new_sorted"),
+    "spline[cubic, unsorted]": _spline("cubic", "new_unsorted"),
+    # the rate loops serve sorted and unsorted new times alike
+    **{f"spline[{m}, order={o}]": _spline(m, "new_unsorted", o)
+       for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
     "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
         f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),

@@ -280,6 +280,16 @@ def cases(n, seed=0):
             if qn is not None:
                 QK = qn.array(keys)
                 c.add("quaternionic", lambda: qn.squad(qn.unflip_rotors(QK), times, new_times))
+    # scipy's own C² spline, and the rates of the curves (scipy: RotationSpline's order=1, 2;
+    # quatarray's order 0 row of the same method is the one above)
+    for method, order in (("cubic", 0), ("cubic", 1), ("cubic", 2), ("bezier", 1), ("bezier", 2)):
+        label = f"spline {method}" + (f" order={order}" if order else "")
+        c = case(f"{label} ({k} keys -> {m_out})", items=m_out,
+                 note="scipy: RotationSpline" + (f"(t, r)(t', {order})" if order else "") + (
+                     " (another curve)" if method != "cubic" else " (the same curve)"), qa_name="spline",
+                 qa_fn=lambda f, method=method, order=order: lambda: f(times, keys, new_times, method=method,
+                                                                         order=order))
+        c.add("scipy", lambda order=order: RotationSpline(times, rkeys)(new_times, order))
 
     # --- conversions
     c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p))

@@ -15,7 +15,12 @@ arcs its table rows hold: a branch of :func:`_segments`), ``controls(q, t)``
 (its evaluation loop, ``(times, new_t, seg, out)`` on the flat table). A new
 method plugs in with one row there, a ``KIND`` branch in :func:`_segments` if it
 needs other arcs, and its loop; the whole-table and the piecewise kernels of
-each method are derived from the row (``_SEGMENTS``, ``_PIECES``).
+each method are derived from the row (``_SEGMENTS``, ``_PIECES``), and so are
+its rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table,
+``_RATES``) when its ``KIND`` is one of theirs. A method whose curve is not a
+table of independent segments gives ``resample(t, nt, q, order)`` instead and
+does everything itself: ``"cubic"``, scipy's RotationSpline, whose rates come
+from one system over all keys (:mod:`quatarray._cubic`, :func:`_run_cubic`).
 
 Internal API (for :mod:`quatarray.dask`; no leading underscore)
 ----------------------------------------------------------------
@@ -27,7 +32,7 @@ Internal API (for :mod:`quatarray.dask`; no leading underscore)
     :func:`seconds`, with the error naming the first new time outside the keys.
 ``unit_keys(parts, flip0=False)``
     The keys as the spline interpolates them (normalised, unflipped).
-``resample_unit(t, nt, q, method)``
+``resample_unit(t, nt, q, method, order=0)``
     :func:`spline` on planned times and unit keys (no checks).
 ``sign_summary(q, rows, ends, negated, unit, dots)``
     What a blocked sign scan needs of a block of raw keys.
@@ -40,11 +45,14 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from . import _cubic
 from . import _elements as E
 from ._access import load1, load4, store1, store4
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
+from ._rates import _vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
-from ._validate import as_times, key_array, key_times
+from ._trig import sincos
+from ._validate import as_times, key_array, key_times, spline_order
 from .interpolation import controls_bezier, controls_squad
 
 Q = (4,)
@@ -207,46 +215,62 @@ def seg_keys(seg, n):
 # run's samples -- loads of u, polynomial trig, flat stores -- runs as SIMD.
 
 
-@rowloop(rows=1)
-def _eval_slerp(times, new_t, seg, out):
+RUN = None  # the per-run body of each copy of _each_run
+
+
+def _each_run(times, new_t, data, out):
+    """The evaluation loop of a method whose ``RUN`` is rebound (see ``_eval_slerp`` &c.):
+    the samples in blocks of BLOCK (the prange), each block run by run (:func:`next_run`);
+    ``RUN(times, new_t, data, out, sg, j, e)`` evaluates samples j … e − 1, all in
+    segment sg (`data`: the flat table, or what the method's loop reads instead)."""
     m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            c = seg_arc(seg, n, 16)
-            for i in range(j, e):
-                store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+            RUN(times, new_t, data, out, sg, j, e)
             j = e
 
 
-@rowloop(rows=1)
-def _eval_nlerp(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
-            j = e
+def _each_run_of(run, name):
+    """The evaluation loop (a RowLoop over the new times) whose runs `run` evaluates."""
+    return rowloop(rows=1)(specialise(_each_run, name, RUN=run))
+
+
+@inline
+def _segment(times, seg, sg):
+    """(t0, h, n): the start and length of segment sg, and where its table row starts;
+    and x0, a zero of the output type (like() on an array inside the loop stops the vectoriser)."""
+    t0 = times[sg]
+    return t0, times[sg + 1] - t0, NSEG * sg, like(seg, 0.0)
+
+
+@inline
+def _run_slerp(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    c = seg_arc(seg, n, 16)
+    for i in range(j, e):
+        store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+
+
+_eval_slerp = _each_run_of(_run_slerp, "_slerp")
+
+
+@inline
+def _run_nlerp(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
+
+
+_eval_nlerp = _each_run_of(_run_nlerp, "_nlerp")
 
 
 @inline
@@ -309,28 +333,20 @@ def _eval_bezier(times, new_t, seg, out):
         bezier_tile(tile, u, res, rows, count, out)
 
 
-@rowloop(rows=1)
-def _eval_squad(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            q0, s0, s1, q1 = seg_keys(seg, n)
-            c0 = seg_arc(seg, n, 16)
-            c1 = seg_arc(seg, n, 21)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                pq = arc_slerp(q0, q1, c0, t)
-                ps = arc_slerp(s0, s1, c1, t)
-                store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
-            j = e
+@inline
+def _run_squad(times, new_t, seg, out, sg, j, e):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    q0, s0, s1, q1 = seg_keys(seg, n)
+    c0 = seg_arc(seg, n, 16)
+    c1 = seg_arc(seg, n, 21)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        pq = arc_slerp(q0, q1, c0, t)
+        ps = arc_slerp(s0, s1, c1, t)
+        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
+
+
+_eval_squad = _each_run_of(_run_squad, "_squad")
 
 
 # Sorted new times go through the table piece by piece: each piece of
@@ -375,6 +391,138 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
         _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[4 * j0 : 4 * j1])
 
 
+# ---- the rates of the curves (order 1, 2) and the cubic spline
+
+
+@inline
+def _arc_rate(seg, n, c, p):
+    """The constant body rate per unit u of the fixed arc at column c of a table row."""
+    a = seg_arc(seg, n, c)
+    return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
+
+
+ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy of _run_rates, _run_cubic
+
+
+@inline
+def _arc_rate(seg, n, c, p):
+    a = seg_arc(seg, n, c)
+    return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
+
+
+def _run_rates(times, new_t, seg, out, sg, j, e):
+    """Angular velocity (``ORDER`` 1) or acceleration (2) of the curve of the method
+    whose table ``KIND`` is (see :func:`_segments`) on one run of samples (`out` flat
+    (3m,)): the derivative rules of :mod:`quatarray._rates` on the table's fixed arcs
+    (their constant rates) and the slerps of moving ends above them."""
+    t0, h, n, x0 = _segment(times, seg, sg)
+    zero3 = (x0, x0, x0)
+    one = like(x0, 1.0)
+    q0, a, b, q1 = seg_keys(seg, n)
+    inv_h = like(x0, 1.0 / h)
+    scale = inv_h if ORDER == 1 else inv_h * inv_h
+    # the rates of the table's fixed arcs (those a method does not have are not used)
+    w0 = _arc_rate(seg, n, 16, q0)
+    w1 = _arc_rate(seg, n, 21, a)
+    w2 = _arc_rate(seg, n, 26, b)
+    for i in range(j, e):
+        u = like(x0, (load1(new_t, i) - t0) / h)
+        if KIND == 0:
+            v = w0 if ORDER == 1 else zero3
+        if KIND == 3:
+            c = (q0[0] + u * (q1[0] - q0[0]), q0[1] + u * (q1[1] - q0[1]), q0[2] + u * (q1[2] - q0[2]),
+                 q0[3] + u * (q1[3] - q0[3]))
+            dq = (q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2], q1[3] - q0[3])
+            cc = E.qdot(c, c)
+            d = E.qmul(E.qconj(c), dq)
+            f = like(x0, 2.0) / cc
+            v = (f * d[1], f * d[2], f * d[3])
+            if ORDER == 2:
+                v = _vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
+        if KIND == 2:
+            pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
+            ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
+            w = like(x0, 2.0) * u * (one - u)
+            dw = like(x0, 2.0) - like(x0, 4.0) * u
+            if ORDER == 1:
+                v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
+            else:
+                v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
+        if KIND == 1:
+            p01 = arc_slerp(q0, a, seg_arc(seg, n, 16), u)
+            p12 = arc_slerp(a, b, seg_arc(seg, n, 21), u)
+            p23 = arc_slerp(b, q1, seg_arc(seg, n, 26), u)
+            if ORDER == 1:
+                s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
+                s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
+                v = slerp_rates(s012, w012, s123, w123, u, one)[1]
+            else:
+                s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
+                s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
+                v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
+        store1(out, 3 * i, v[0] * scale)
+        store1(out, 3 * i + 1, v[1] * scale)
+        store1(out, 3 * i + 2, v[2] * scale)
+
+
+
+def _run_cubic(times, new_t, data, out, sg, j, e):
+    """``method="cubic"``: samples of the curve (``ORDER`` 0: quaternions, flat (4m,)),
+    its angular velocity (1) or acceleration (2) (flat (3m,)) on one run of samples,
+    from `data` = (the keys, flat (4K,); the segments' coefficients, flat (9(K − 1),), see
+    :mod:`quatarray._cubic`): the segment's key and coefficients are read once."""
+    keys, coef = data
+    t0 = times[sg]
+    x0 = like(coef, 0.0)
+    qn = load4(keys, sg)
+    b = _cubic.NCOEF * sg
+    c0 = (coef[b], coef[b + 1], coef[b + 2])
+    c1 = (coef[b + 3], coef[b + 4], coef[b + 5])
+    c2 = (coef[b + 6], coef[b + 7], coef[b + 8])
+    for i in range(j, e):
+        tau = like(x0, load1(new_t, i) - t0)
+        rv = (((c0[0] * tau + c1[0]) * tau + c2[0]) * tau, ((c0[1] * tau + c1[1]) * tau + c2[1]) * tau,
+              ((c0[2] * tau + c1[2]) * tau + c2[2]) * tau)
+        n2 = rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]
+        hs, hc = sincos(like(x0, 0.5) * np.sqrt(n2))
+        if ORDER == 0:
+            store4(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
+        else:
+            three = like(x0, 3.0)
+            two = like(x0, 2.0)
+            rd = ((three * c0[0] * tau + two * c1[0]) * tau + c2[0],
+                  (three * c0[1] * tau + two * c1[1]) * tau + c2[1],
+                  (three * c0[2] * tau + two * c1[2]) * tau + c2[2])
+            k1, k2 = jac_coeffs(n2, hs, hc)
+            if ORDER == 1:
+                v = jac(rv, k1, k2, rd)
+            else:
+                six = like(x0, 6.0)
+                rdd = (six * c0[0] * tau + two * c1[0], six * c0[1] * tau + two * c1[1],
+                       six * c0[2] * tau + two * c1[2])
+                j1, j2 = acc_coeffs(n2, hs, hc)
+                a = jac(rv, k1, k2, rdd)
+                nl = jac_dot(rv, rd, j1, j2, k2)
+                v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
+            store1(out, 3 * i, v[0])
+            store1(out, 3 * i + 1, v[1])
+            store1(out, 3 * i + 2, v[2])
+
+
+
+def _resample_cubic(t, nt, q, order):
+    """:func:`resample_unit` for ``method="cubic"``: the coefficients of scipy's
+    RotationSpline (:func:`quatarray._cubic.coefficients`, float64), then one
+    evaluation loop in the keys' float type."""
+    coef, _ = _cubic.coefficients(t, q)
+    flat_nt = np.ascontiguousarray(nt.reshape(-1))
+    width = 3 if order else 4
+    out = np.empty(flat_nt.shape[0] * width, q.dtype)
+    if out.shape[0]:
+        _EVAL_CUBIC[order](t, flat_nt, (np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1)), out)
+    return out.reshape(nt.shape + (width,))
+
+
 @kernel
 def _n_outside(lo, hi, x):
     """How many x are not within [lo, hi] (nan included)."""
@@ -416,7 +564,7 @@ def plan_times(t_raw, nt_raw, index0=0, origin=None):
     return t, nt
 
 
-def spline(times, keys, new_times, method="bezier"):
+def spline(times, keys, new_times, method="bezier", order=0):
     """Resample a timestamped key stream at `new_times`.
 
     The keys are normalised and unflipped first (real streams are slightly
@@ -432,7 +580,7 @@ def spline(times, keys, new_times, method="bezier"):
     keys : array_like, shape (K, 4), K ≥ 2
     new_times : array_like, any shape
         Within [times[0], times[−1]], in any order.
-    method : {"bezier", "slerp", "nlerp", "squad"}
+    method : {"bezier", "slerp", "nlerp", "squad", "cubic"}
         ``"bezier"``: segment n is ``bezier(q_n, a_n, b_{n+1}, q_{n+1}, u)``
         with the controls of ``bezier_controls(keys, times)``: for evenly
         spaced times exactly the contract's formula; for uneven spacing the
@@ -440,17 +588,39 @@ def spline(times, keys, new_times, method="bezier"):
         2h_{n−1}/(h_{n−1}+h_n) (incoming), h_n = t_{n+1} − t_n, so the angular
         velocity is continuous in time across keys. ``"slerp"``, ``"nlerp"``:
         piecewise great arc / normalised chord. ``"squad"``: Shoemake's squad
-        with :func:`squad_controls` (no time scaling).
+        with :func:`squad_controls` (no time scaling). ``"cubic"``: scipy's
+        :class:`~scipy.spatial.transform.RotationSpline` (C² in time: the
+        angular rate and acceleration are continuous; its global rate system
+        and iteration, see :mod:`quatarray._cubic`), equal to it within 1e-10
+        in values, rates and accelerations.
+    order : {0, 1, 2}
+        0: the rotations. 1: the curve's angular velocity, 2: its angular
+        acceleration, both ``(..., 3)`` in the body frame (the moving frame's
+        axes) in radians per time unit of `times` (per second for seconds, per
+        nanosecond for ns stamps), as scipy's ``RotationSpline(t, r)(new_t,
+        order)``. They are the analytic derivatives of the method's own curve,
+        not finite differences: slerp's rate is constant on each segment
+        (Log(q_n* q_{n+1})/h_n; acceleration 0, the rate jumps at keys);
+        for Bézier the de Casteljau chain is differentiated slerp by slerp:
+        a slerp of moving ends s = a ⊗ Exp(w Log(a* ⊗ b)) has body rate
+        Ω_s = R(E)ᵀ Ω_a + J(y) y', E = Exp(y), y = w r, r = Log(a* ⊗ b),
+        y' = w' r + w J(r)⁻¹ (Ω_b − R(a* ⊗ b)ᵀ Ω_a), J the right Jacobian,
+        starting from the constant rates of the three fixed control arcs
+        (and likewise for squad's outer slerp with w = 2u(1 − u), and the
+        accelerations one derivative further; see :mod:`quatarray._rates`).
+        The time-scaled Bézier controls make its rate continuous across keys.
 
     Returns
     -------
-    ndarray, shape ``new_times.shape + (4,)``, dtype of the keys.
+    ndarray, shape ``new_times.shape + (4,)`` (``order`` 0) or
+    ``new_times.shape + (3,)``, dtype of the keys.
 
     Raises
     ------
     ValueError
         `times` not strictly increasing, shapes that do not match, a new time
-        outside the key range (the message names the first one), unknown method.
+        outside the key range (the message names the first one), unknown
+        method, `order` not 0, 1 or 2.
 
     Examples
     --------
@@ -459,11 +629,21 @@ def spline(times, keys, new_times, method="bezier"):
     >>> r = qa.spline([0, 1, 2], keys, [0.0, 0.5, 2.0])
     >>> np.allclose(qa.as_rotvec(r)[:, 2], [0, 0.25, 1.0])
     True
+    >>> np.round(qa.spline([0, 1, 2], keys, [0.5, 1.5], order=1), 12) + 0.0  # 0.5 rad per unit about z
+    array([[0. , 0. , 0.5],
+           [0. , 0. , 0.5]])
+    >>> from scipy.spatial.transform import Rotation, RotationSpline
+    >>> t = [0, 1, 2.5, 3]
+    >>> q = qa.from_rotvec([[0, 0, 0], [0.2, 0, 0.5], [0.4, 0.3, 1.0], [0.5, 0.2, 1.6]])
+    >>> ref = RotationSpline(t, Rotation.from_quat(q, scalar_first=True))
+    >>> np.allclose(qa.spline(t, q, [0.3, 2.2], method="cubic", order=2), ref([0.3, 2.2], 2), rtol=0, atol=1e-10)
+    True
     """
+    order = spline_order(order)
     check_method(method)
     q = key_array(keys)
     t, nt = plan_times(key_times(as_times(times, "times"), q.shape[0]), as_times(new_times, "new_times"))
-    return resample_unit(t, nt, unit_keys([q]), method)
+    return resample_unit(t, nt, unit_keys([q]), method, order)
 
 
 def unit_keys(parts, flip0=False):
@@ -496,13 +676,22 @@ def _unit_unflip(p, out, a, flip0):
         E.store4(out, i, r)
 
 
-def resample_unit(t, nt, q, method):
+def resample_unit(t, nt, q, method, order=0):
     """:func:`spline` on times `t`, new times `nt` (as :func:`plan_times` gives them)
     and unit, unflipped keys `q`."""
+    if _METHODS[method].resample is not None:
+        return _METHODS[method].resample(t, nt, q, order)
     k = q.shape[0]
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
     c_out, c_in = _METHODS[method].controls(q, t)
     m = flat_nt.shape[0]
+    if order:  # the whole table (zeros: the rate loops read every arc column), then the rate loop
+        out = np.empty((m, 3), q.dtype)
+        if m:
+            seg = np.zeros((k - 1, NSEG), q.dtype)
+            _SEGMENTS[method](q, c_out, c_in, seg)
+            _RATES[method, order](t, flat_nt, seg.reshape(-1), out.reshape(-1))
+        return out.reshape(nt.shape + (3,))
     out = np.empty((m, 4), q.dtype)
     if m > 1 and (flat_nt[1:] >= flat_nt[:-1]).all():
         _PIECES[method](t, flat_nt, q, c_out, c_in, out.reshape(-1))
@@ -528,6 +717,9 @@ class Method(NamedTuple):
     kind: int  # the fixed arcs its table rows hold (``KIND`` of _segments)
     controls: Callable  # (unit keys (K, 4), float64 times (K,)) -> (c_out, c_in), each (K, 4)
     evaluate: object  # the evaluation loop (times, new_t, seg, out), a RowLoop
+    # a method without a segment table (cubic: one global system over all keys) does
+    # all of resample_unit itself: resample(t, nt, q, order) -> the result
+    resample: Callable = None
 
 
 def _no_controls(q, t):
@@ -544,10 +736,18 @@ _METHODS = {
     "slerp": Method(0, _no_controls, _eval_slerp),
     "nlerp": Method(3, _no_controls, _eval_nlerp),
     "squad": Method(2, _squad_controls, _eval_squad),
+    "cubic": Method(-1, None, None, _resample_cubic),
 }
-_SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in _METHODS.items()}
+_TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
+_SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in _TABLED.items()}
 _PIECES = {
     name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(m.evaluate.py_func, "_piece")),
                                      _segments_1=ir_inline(specialise(_SEGMENTS[name].py_func, "_piece"))))
-    for name, m in _METHODS.items()
+    for name, m in _TABLED.items()
 }
+# order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
+_RATES = {(name, order): _each_run_of(inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)),
+                                      f"_rates_{name}_{order}")
+          for name, m in _TABLED.items() for order in (1, 2)}
+_EVAL_CUBIC = {order: _each_run_of(inline(specialise(_run_cubic, f"_{order}", ORDER=order)), f"_cubic_{order}")
+               for order in (0, 1, 2)}

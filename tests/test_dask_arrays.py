@@ -291,6 +291,34 @@ def test_spline_output_chunks_and_order(client):
 
 
 @needs("interpolation")
+@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
+def test_spline_rates_any_chunking(method):
+    """order=1, 2 from the same key windows as the values: the in-memory rates."""
+    t, keys = keyed(50, seed=9)
+    rng = np.random.default_rng(9)
+    nt = np.concatenate([rng.uniform(t[0], t[-1], 300), t])
+    for order in (1, 2):
+        expect = qa.spline(t, keys, nt, method=method, order=order)
+        for rows in (1, 7):
+            lazy = qd.spline(t, chunked(keys, rows), nt, method=method, order=order)
+            assert lazy.shape == (len(nt), 3)
+            np.testing.assert_allclose(lazy.compute(scheduler="sync"), expect, rtol=0,
+                                       atol=1e-12 * (1 + np.abs(expect).max()))
+
+
+@needs("interpolation")
+def test_spline_refuses_cubic_and_bad_order():
+    t, keys = keyed(20, seed=4)
+    x, nt = chunked(keys, 6), np.linspace(t[0], t[-1], 50)
+    for order in (0, 1):
+        with pytest.raises(ValueError, match=r"got 'cubic': its C² spline is global \(one tridiagonal system"):
+            qd.spline(t, x, nt, method="cubic", order=order)
+    for bad in (3, -1, 1.5, True):
+        with pytest.raises(ValueError, match=r"Expected `order` to be 0, 1 or 2"):
+            qd.spline(t, x, nt, order=bad)
+
+
+@needs("interpolation")
 def test_spline_integer_stamps_and_errors():
     t = 1_600_000_000_000_000_000 + np.arange(30, dtype=np.int64) * 10_000_000  # ns since the epoch
     keys = stream(30, seed=5)

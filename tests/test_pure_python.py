@@ -22,6 +22,8 @@ MODULES = [
     "test_trig.py",
     "test_interpolation.py",
     "test_splines.py",
+    "test_cubic.py",
+    "test_rates.py",
     "test_transforms.py",
     "test_align.py",
     "test_kinematics.py",

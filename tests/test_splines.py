@@ -149,8 +149,8 @@ def test_spline_bad_inputs(rng):
         qa.spline(np.arange(5.0), keys[:, :3], [0.5])
     with pytest.raises(ValueError, match="at least 2"):
         qa.spline([0.0], keys[:1], [0.0])
-    with pytest.raises(ValueError, match="method"):
-        qa.spline(np.arange(5.0), keys, [0.5], method="cubic")
+    with pytest.raises(ValueError, match="method"):  # (not "cubic": scipy's RotationSpline, tests/test_cubic.py)
+        qa.spline(np.arange(5.0), keys, [0.5], method="hermite")
 
 
 # ---------------------------------------------------------------------------
@@ -189,11 +189,14 @@ def test_real_stream_bezier_beats_slerp(data_dir, load):
 
 
 
-@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
-def test_spline_parallel_variants_agree_with_serial(monkeypatch, method):
+@pytest.mark.parametrize("method, order", [
+    pytest.param(m, o, marks=() if o == 0 and m != "cubic" else pytest.mark.slow)  # slow: their plain-Python pass
+    for m in ["bezier", "slerp", "nlerp", "squad", "cubic"] for o in (0, 1, 2)])
+def test_spline_parallel_variants_agree_with_serial(monkeypatch, method, order):
     """Every method's multi-threaded loops compile (squad's failed with numba's
     'Dimension mismatch' from 200 000 unsorted new times) and give the serial bits,
-    sorted and unsorted, float64 and float32."""
+    sorted and unsorted, float64 and float32; so do the rate loops (order 1, 2)
+    and the cubic spline's."""
     from quatarray import _jit
 
     rng = np.random.default_rng(43)
@@ -203,6 +206,6 @@ def test_spline_parallel_variants_agree_with_serial(monkeypatch, method):
     for dtype in (np.float64, np.float32):
         for nt in (np.sort(new), new):
             monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 200000)
-            serial = qa.spline(times, keys.astype(dtype), nt, method=method)
+            serial = qa.spline(times, keys.astype(dtype), nt, method=method, order=order)
             monkeypatch.setattr(_jit, "PARALLEL_MIN_ROWS", 0)
-            np.testing.assert_array_equal(qa.spline(times, keys.astype(dtype), nt, method=method), serial)
+            np.testing.assert_array_equal(qa.spline(times, keys.astype(dtype), nt, method=method, order=order), serial)

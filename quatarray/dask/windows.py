@@ -12,7 +12,7 @@ from dask.base import tokenize
 from dask.delayed import Delayed
 from dask.highlevelgraph import HighLevelGraph
 
-from .._validate import as_float
+from .._validate import as_float, spline_order
 from .arrays import Q, _serial, as_dask, carry_all, known_chunks, row_pieces, row_window, unflip_carry
 
 
@@ -94,7 +94,7 @@ def _edge_rows(summary, end, lo, hi):
     return summary[5][end][lo:hi]
 
 
-def _spline_task(times, pieces, flip0, new_times, method, origin):
+def _spline_task(times, pieces, flip0, new_times, method, origin, order=0):
     """The in-memory spline on a window of keys given in pieces (its rows in the
     blocks it spans), its first row taking the global sign; integer times are taken
     from `origin`, the whole stream's first key time, as in memory."""
@@ -104,7 +104,7 @@ def _spline_task(times, pieces, flip0, new_times, method, origin):
     with _serial():
         q = unit_keys(pieces, flip0)
         t, nt = plan_times(key_times(times, len(q)), np.asarray(new_times), origin=origin)
-        return resample_unit(t, nt, q, method)
+        return resample_unit(t, nt, q, method, order)
 
 
 def _output_chunks(nt, cuts, n_key_blocks, chunks):
@@ -319,7 +319,7 @@ def _inside(t_ends, nt_raw):
     return True
 
 
-def spline(times, keys, new_times, method="bezier", chunks=None):
+def spline(times, keys, new_times, method="bezier", chunks=None, order=0):
     """Dask version of :func:`quatarray.spline`: resample a key stream, lazily in the keys.
 
     Each output block runs the in-memory :func:`quatarray.spline` on the new
@@ -355,15 +355,22 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     keys : Dask array or array_like, shape (K, 4)
     new_times : array_like or Dask array, shape (M,)
     method : {"bezier", "slerp", "nlerp", "squad"}
+        Not ``"cubic"``: its C² spline is global (one tridiagonal system over
+        all keys), which key windows cannot give exactly; it raises
+        ``ValueError`` (call :func:`quatarray.spline` on the keys in memory).
     chunks : int, optional
         Rows per output block. Default: the chunks of `new_times` when it is
         a Dask array; else, for sorted new times, one output block per key
         block (split where the key blocks start, or evenly when the key
         times are a Dask array).
 
+    order : {0, 1, 2}
+        As :func:`quatarray.spline`: the values, the angular velocity or the
+        angular acceleration (from the same key windows).
+
     Returns
     -------
-    dask.array.Array, shape (M, 4)
+    dask.array.Array, shape (M, 4), or (M, 3) for ``order`` 1 and 2
 
     Examples
     --------
@@ -378,6 +385,12 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
     from .._validate import key_times
     from ..splines import check_method
 
+    if method == "cubic":
+        raise ValueError("Expected `method` to be one of ['bezier', 'nlerp', 'slerp', 'squad'] in quatarray.dask, "
+                         "got 'cubic': its C² spline is global (one tridiagonal system over all keys), which Dask's "
+                         "key windows cannot give exactly; call quatarray.spline on the keys in memory.")
+    order = spline_order(order)
+    width = 3 if order else 4
     check_method(method)
     x = as_dask(keys, "keys", Q)
     if x.ndim != 2:
@@ -416,7 +429,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         dsk[cname] = (_carries, [(sname, i) for i in range(nb)])
     for j, (part, seg) in enumerate(zip(parts, segs)):
         if seg is None:
-            dsk[(name, j, 0)] = (np.empty, (0, 4), dtype)
+            dsk[(name, j, 0)] = (np.empty, (0, width), dtype)
             continue
         # the segments of the block's earliest and latest new times bound all of its segments
         seg = np.clip(seg - 1, 0, k - 2)
@@ -425,11 +438,12 @@ def spline(times, keys, new_times, method="bezier", chunks=None):
         rows[c].add(int(w0 - starts[c]))
         carry = (operator.getitem, cname, c) if nb > _FEW_BLOCKS else (_carry_into, [(sname, i) for i in range(c + 1)])
         flip = (_window_flip, carry, (sname, c), int(w0 - starts[c]))
-        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), row_pieces(x, w0, w1, dsk, edge), flip, part, method, origin)
+        dsk[(name, j, 0)] = (_spline_task, times_window(w0, w1, dsk), row_pieces(x, w0, w1, dsk, edge), flip, part, method,
+                             origin, order)
     for i in range(nb):
         dsk[(sname, i)] = (_flip_summary, (x.name, i, 0), sorted(rows[i]))
     graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x] + deps)
-    return da.Array(graph, name, chunks=(tuple(sizes), (4,)), meta=np.empty((0, 0), dtype))
+    return da.Array(graph, name, chunks=(tuple(sizes), (width,)), meta=np.empty((0, 0), dtype))
 
 
 def _angular_velocity_task(q, times, frame, lo, hi):
