@@ -2,20 +2,22 @@
 
 A stream of K keys becomes a table of K − 1 segment rows (:func:`_segments`),
 each new time is placed in its segment by a run search (:func:`next_run`), and
-one evaluation loop per method evaluates the runs (``_eval_*``). Sorted new
-times go through the table piece by piece (:func:`_spline_pieces`). The per-element
-slerp math is :mod:`quatarray._slerp`, the controls come from
+one evaluation loop (:func:`_eval`) evaluates the runs with the method's RUN.
+Sorted new times go through the table piece by piece (:func:`_spline_pieces`).
+The per-element slerp math is :mod:`quatarray._slerp`, the controls come from
 :mod:`quatarray.interpolation`.
 
 Methods
 -------
 ``_METHODS`` maps each method name to a :class:`Method`: ``kind`` (which fixed
 arcs its table rows hold: a branch of :func:`_segments`), ``controls(q, t)``
-(the table's columns 4-11 from unit keys and float64 times) and ``evaluate``
-(its evaluation loop, ``(times, new_t, seg, out)`` on the flat table). A new
-method plugs in with one row there, a ``KIND`` branch in :func:`_segments` if it
-needs other arcs, and its loop; the whole-table and the piecewise kernels of
-each method are derived from the row (``_SEGMENTS``, ``_PIECES``).
+(the table's columns 4-11 from unit keys and float64 times), ``run`` (the
+inner loop over one run's samples, inlined into :func:`_eval`) and, for a
+method that batches samples, ``start``, ``flush`` and ``cap`` (a block's
+state, its evaluation, its size: the Bézier tile). A new method plugs in with one row there, a
+``KIND`` branch in :func:`_segments` if it needs other arcs (or more columns:
+``NSEG``), and its ``run``; the method's compiled loops are derived from the
+row (``_EVALS``, ``_SEGMENTS``, ``_PIECES``).
 
 Internal API (for :mod:`quatarray.dask`; no leading underscore)
 ----------------------------------------------------------------
@@ -50,7 +52,7 @@ from .interpolation import controls_bezier, controls_squad
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
 # The Bézier samples are gathered, TILE at a time, into a column-major tile of
-# their segments' rows and evaluated there as SIMD lanes (see _eval_bezier):
+# their segments' rows and evaluated there as SIMD lanes (see run_bezier):
 # one copy of the long de Casteljau chain serves runs of any length (a separate
 # loop for long runs in one segment was no faster, and doubled its compile time).
 TILE = 64
@@ -201,52 +203,88 @@ def seg_keys(seg, n):
 # 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`put_arc`) at 16, 21, 26
 # (written by `_segments`, one copy per method in `_SEGMENTS`).
 #
-# The evaluation loops go segment by segment: for each run of samples in one
-# segment (the whole run when new times are sorted, single samples when not)
-# the segment's values are read once into scalars and the inner loop over the
-# run's samples -- loads of u, polynomial trig, flat stores -- runs as SIMD.
+# The evaluation loop (`_eval`, one copy per method) goes segment by segment:
+# for each run of samples in one segment (the whole run when new times are
+# sorted, single samples when not) the method's RUN reads the segment's values
+# once into scalars and its inner loop over the run's samples -- loads of u,
+# polynomial trig, flat stores -- runs as SIMD.
+
+START = RUN = FLUSH = None  # bound in each method's copy of _eval (see _EVALS)
+CAP = -1
 
 
-@rowloop(rows=1)
-def _eval_slerp(times, new_t, seg, out):
+def _eval(times, new_t, seg, out):
+    """Samples `new_t` of the flat table `seg` into the flat (4m,) `out`, block by
+    block of BLOCK samples and, in a block, run by run (:func:`next_run`):
+    ``RUN(seg, n, new_t, j, e, t0, h, x0, out, state, count)`` evaluates samples
+    j, j + 1, … (up to e − 1) of the segment whose table row starts at ``seg[n]``
+    (times t0, t0 + h) and returns where it stopped and `count`. A method that
+    batches its samples (the Bézier tile) has ``START(seg)`` make a block's
+    `state`, where `count` samples wait, stops a run when CAP are waiting, and
+    has ``FLUSH(out, state, count)`` evaluate them (called at two places only,
+    so LLVM keeps it one function)."""
     m = new_t.shape[0]
     x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
+        state = START(seg)
+        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
             t0 = times[sg]
             h = times[sg + 1] - t0
             n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            c = seg_arc(seg, n, 16)
-            for i in range(j, e):
-                store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
-            j = e
+            while j < e:
+                j, count = RUN(seg, n, new_t, j, e, t0, h, x0, out, state, count)
+                if count == CAP:
+                    FLUSH(out, state, count)
+                    count = np.int64(0)
+        FLUSH(out, state, count)
 
 
-@rowloop(rows=1)
-def _eval_nlerp(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            p = seg_q(seg, n, 0)
-            q = seg_q(seg, n, 12)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
-            j = e
+@inline
+def no_state(seg):
+    return 0
+
+
+@inline
+def no_flush(out, state, count):
+    return None
+
+
+@inline
+def run_slerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    c = seg_arc(seg, n, 16)
+    for i in range(j, e):
+        store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+    return e, count
+
+
+@inline
+def run_nlerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
+    p = seg_q(seg, n, 0)
+    q = seg_q(seg, n, 12)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
+    return e, count
+
+
+@inline
+def run_squad(seg, n, new_t, j, e, t0, h, x0, out, state, count):
+    q0, s0, s1, q1 = seg_keys(seg, n)
+    c0 = seg_arc(seg, n, 16)
+    c1 = seg_arc(seg, n, 21)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        pq = arc_slerp(q0, q1, c0, t)
+        ps = arc_slerp(s0, s1, c1, t)
+        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
+    return e, count
 
 
 @inline
@@ -262,9 +300,12 @@ def tile_arc(tile, c, lane):
 
 
 @kernel
-def bezier_tile(tile, u, res, rows, count, out):
-    """Evaluate the `count` samples waiting in a tile (SIMD over its lanes, into `res`
-    column by column), then store them in their rows of `out`."""
+def bezier_tile(out, state, count):
+    """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
+    SIMD over its lanes, into `res` column by column), then store them in their rows of
+    `out`. The FLUSH of the Bézier method: a kernel of its own, called at _eval's two
+    places (one copy of the long de Casteljau chain)."""
+    tile, u, res, rows = state
     for lane in range(count):
         r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
                        tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), load1(u, lane))
@@ -277,60 +318,26 @@ def bezier_tile(tile, u, res, rows, count, out):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
 
 
-@rowloop(rows=1)
-def _eval_bezier(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        # samples wait in a tile: their segments' rows column by column, u, and the sample
-        tile = np.empty(NSEG * TILE, seg.dtype)
-        u = np.empty(TILE, seg.dtype)
-        res = np.empty(4 * TILE, seg.dtype)
-        rows = np.empty(TILE, np.int64)
-        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            for i in range(j, e):
-                for c in range(NSEG):
-                    tile[c * TILE + count] = seg[n + c]
-                u[count] = like(x0, (new_t[i] - t0) / h)
-                rows[count] = i
-                count += 1
-                if count == TILE:
-                    bezier_tile(tile, u, res, rows, count, out)
-                    count = np.int64(0)
-            j = e
-        bezier_tile(tile, u, res, rows, count, out)
+@inline
+def start_bezier(seg):
+    """A block's tile: its samples' segment rows column by column, u, the results, the sample rows."""
+    return (np.empty(NSEG * TILE, seg.dtype), np.empty(TILE, seg.dtype), np.empty(4 * TILE, seg.dtype),
+            np.empty(TILE, np.int64))
 
 
-@rowloop(rows=1)
-def _eval_squad(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            q0, s0, s1, q1 = seg_keys(seg, n)
-            c0 = seg_arc(seg, n, 16)
-            c1 = seg_arc(seg, n, 21)
-            for i in range(j, e):
-                t = like(x0, (load1(new_t, i) - t0) / h)
-                pq = arc_slerp(q0, q1, c0, t)
-                ps = arc_slerp(s0, s1, c1, t)
-                store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
-            j = e
+@inline
+def run_bezier(seg, n, new_t, j, e, t0, h, x0, out, state, count):
+    """Samples j, j + 1, … wait in the tile until the run ends or the tile is full."""
+    tile, u, res, rows = state
+    i = j
+    while i < e and count < TILE:
+        for c in range(NSEG):
+            tile[c * TILE + count] = seg[n + c]
+        u[count] = like(x0, (new_t[i] - t0) / h)
+        rows[count] = i
+        count += 1
+        i += 1
+    return i, count
 
 
 # Sorted new times go through the table piece by piece: each piece of
@@ -509,7 +516,7 @@ def resample_unit(t, nt, q, method):
     elif m:
         seg = np.empty((k - 1, NSEG), q.dtype)
         _SEGMENTS[method](q, c_out, c_in, seg)
-        _METHODS[method].evaluate(t, flat_nt, seg.reshape(-1), out.reshape(-1))
+        _EVALS[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
 
 
@@ -527,7 +534,10 @@ class Method(NamedTuple):
 
     kind: int  # the fixed arcs its table rows hold (``KIND`` of _segments)
     controls: Callable  # (unit keys (K, 4), float64 times (K,)) -> (c_out, c_in), each (K, 4)
-    evaluate: object  # the evaluation loop (times, new_t, seg, out), a RowLoop
+    run: object  # RUN of _eval: the samples of one run from their segment's table row
+    start: object = no_state  # START of _eval: a block's state (samples waiting)
+    flush: object = no_flush  # FLUSH of _eval: evaluate the samples waiting
+    cap: int = -1  # CAP of _eval: how many samples may wait (-1: none wait)
 
 
 def _no_controls(q, t):
@@ -540,14 +550,19 @@ def _squad_controls(q, t):
 
 
 _METHODS = {
-    "bezier": Method(1, controls_bezier, _eval_bezier),
-    "slerp": Method(0, _no_controls, _eval_slerp),
-    "nlerp": Method(3, _no_controls, _eval_nlerp),
-    "squad": Method(2, _squad_controls, _eval_squad),
+    "bezier": Method(1, controls_bezier, run_bezier, start_bezier, bezier_tile, TILE),
+    "slerp": Method(0, _no_controls, run_slerp),
+    "nlerp": Method(3, _no_controls, run_nlerp),
+    "squad": Method(2, _squad_controls, run_squad),
+}
+# each method's compiled loops: the evaluation loop, the table, and both in pieces
+_EVALS = {
+    name: rowloop(rows=1)(specialise(_eval, f"_{name}", START=m.start, RUN=m.run, FLUSH=m.flush, CAP=m.cap))
+    for name, m in _METHODS.items()
 }
 _SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in _METHODS.items()}
 _PIECES = {
-    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(m.evaluate.py_func, "_piece")),
+    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(_EVALS[name].py_func, "_piece")),
                                      _segments_1=ir_inline(specialise(_SEGMENTS[name].py_func, "_piece"))))
     for name, m in _METHODS.items()
 }
