@@ -244,17 +244,17 @@ def _eval(times, new_t, seg, out):
         FLUSH(out, state, count)
 
 
-@inline
+@ir_inline
 def no_state(seg):
     return 0
 
 
-@inline
+@ir_inline
 def no_flush(out, state, count):
     return None
 
 
-@inline
+@ir_inline
 def run_slerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     p = seg_q(seg, n, 0)
     q = seg_q(seg, n, 12)
@@ -264,7 +264,7 @@ def run_slerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     return e, count
 
 
-@inline
+@ir_inline
 def run_nlerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     p = seg_q(seg, n, 0)
     q = seg_q(seg, n, 12)
@@ -274,7 +274,7 @@ def run_nlerp(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     return e, count
 
 
-@inline
+@ir_inline
 def run_squad(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     q0, s0, s1, q1 = seg_keys(seg, n)
     c0 = seg_arc(seg, n, 16)
@@ -318,14 +318,14 @@ def bezier_tile(out, state, count):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
 
 
-@inline
+@ir_inline
 def start_bezier(seg):
     """A block's tile: its samples' segment rows column by column, u, the results, the sample rows."""
     return (np.empty(NSEG * TILE, seg.dtype), np.empty(TILE, seg.dtype), np.empty(4 * TILE, seg.dtype),
             np.empty(TILE, np.int64))
 
 
-@inline
+@ir_inline
 def run_bezier(seg, n, new_t, j, e, t0, h, x0, out, state, count):
     """Samples j, j + 1, … wait in the tile until the run ends or the tile is full."""
     tile, u, res, rows = state
