@@ -219,16 +219,8 @@ def _store33(out, i, m):
     if isinstance(out, types.Array) and out.ndim == 3 and out.layout == "C" and out.aligned:
 
         def impl(out, i, m):
-            j = 9 * i
-            flat_store(out, j, m[0])
-            flat_store(out, j + 1, m[1])
-            flat_store(out, j + 2, m[2])
-            flat_store(out, j + 3, m[3])
-            flat_store(out, j + 4, m[4])
-            flat_store(out, j + 5, m[5])
-            flat_store(out, j + 6, m[6])
-            flat_store(out, j + 7, m[7])
-            flat_store(out, j + 8, m[8])
+            for c in range(9):  # a constant trip count: LLVM unrolls it into nine stores
+                flat_store(out, 9 * i + c, m[c])
 
         return impl
     return store33

@@ -24,7 +24,7 @@ from . import _elements as E
 from ._access import load1, load1_ir, load4, load4_ir, store4, store4_ir
 from ._jit import kernel, like, prange, rowloop
 from ._slerp import bezier4, bisect4, controls4, double4, lerp4, nlerp4, slerp4, squad4
-from ._validate import (as_float, as_times, check_times, elementwise, first_not_increasing, key_array, key_times,
+from ._validate import (as_times, check_times, elementwise, first_not_increasing, key_array, key_times,
                         not_increasing, scan)
 
 # the key-time rules, by the names quatarray.kinematics imports them

@@ -2,21 +2,23 @@
 
 A stream of K keys becomes a table of K − 1 segment rows (:func:`_segments`),
 each new time is placed in its segment by a run search (:func:`next_run`), and
-one evaluation loop per method evaluates the runs (``_eval_*``). Sorted new
-times go through the table piece by piece (:func:`_spline_pieces`). The per-element
-slerp math is :mod:`quatarray._slerp`, the controls come from
+one evaluation loop (:func:`_eval`) evaluates the runs with the method's RUN.
+Sorted new times go through the table piece by piece (:func:`_spline_pieces`).
+The per-element slerp math is :mod:`quatarray._slerp`, the controls come from
 :mod:`quatarray.interpolation`.
 
 Methods
 -------
 ``_METHODS`` maps each method name to a :class:`Method`: ``kind`` (which fixed
 arcs its table rows hold: a branch of :func:`_segments`), ``controls(q, t)``
-(the table's columns 4-11 from unit keys and float64 times) and ``evaluate``
-(its evaluation loop, ``(times, new_t, seg, out)`` on the flat table). A new
-method plugs in with one row there, a ``KIND`` branch in :func:`_segments` if it
-needs other arcs, and its loop; the whole-table and the piecewise kernels of
-each method are derived from the row (``_SEGMENTS``, ``_PIECES``), and so are
-its rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table,
+(the table's columns 4-11 from unit keys and float64 times), ``run`` (the
+inner loop over one run's samples, inlined into :func:`_eval`) and, for a
+method that batches samples, ``start``, ``flush`` and ``cap`` (a block's
+state, its evaluation, its size: the Bézier tile). A new method plugs in with
+one row there, a ``KIND`` branch in :func:`_segments` if it needs other arcs
+(or more columns: ``NSEG``), and its ``run``; the method's compiled loops are
+derived from the row (``_EVALS``, ``_SEGMENTS``, ``_PIECES``), and so are its
+rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table,
 ``_RATES``) when its ``KIND`` is one of theirs. A method whose curve is not a
 table of independent segments gives ``resample(t, nt, q, order)`` instead and
 does everything itself: ``"cubic"``, scipy's RotationSpline, whose rates come
@@ -58,7 +60,7 @@ from .interpolation import controls_bezier, controls_squad
 Q = (4,)
 BLOCK = 2048  # samples per block of the segment search
 # The Bézier samples are gathered, TILE at a time, into a column-major tile of
-# their segments' rows and evaluated there as SIMD lanes (see _eval_bezier):
+# their segments' rows and evaluated there as SIMD lanes (see run_bezier):
 # one copy of the long de Casteljau chain serves runs of any length (a separate
 # loop for long runs in one segment was no faster, and doubled its compile time).
 TILE = 64
@@ -209,68 +211,100 @@ def seg_keys(seg, n):
 # 12-15 q_{n+1}, then (θ, v) of up to three fixed arcs (`put_arc`) at 16, 21, 26
 # (written by `_segments`, one copy per method in `_SEGMENTS`).
 #
-# The evaluation loops go segment by segment: for each run of samples in one
-# segment (the whole run when new times are sorted, single samples when not)
-# the segment's values are read once into scalars and the inner loop over the
-# run's samples -- loads of u, polynomial trig, flat stores -- runs as SIMD.
+# The evaluation loop (`_eval`, one copy per method and order) goes segment by
+# segment: for each run of samples in one segment (the whole run when new times
+# are sorted, single samples when not) the method's RUN reads the segment's
+# values once into scalars and its inner loop over the run's samples -- loads
+# of u, polynomial trig, flat stores -- runs as SIMD.
+
+START = RUN = FLUSH = None  # bound in each copy of _eval (see _eval_of)
+CAP = -1
 
 
-RUN = None  # the per-run body of each copy of _each_run
-
-
-def _each_run(times, new_t, data, out):
-    """The evaluation loop of a method whose ``RUN`` is rebound (see ``_eval_slerp`` &c.):
-    the samples in blocks of BLOCK (the prange), each block run by run (:func:`next_run`);
-    ``RUN(times, new_t, data, out, sg, j, e)`` evaluates samples j … e − 1, all in
-    segment sg (`data`: the flat table, or what the method's loop reads instead)."""
+def _eval(times, new_t, data, out):
+    """Samples `new_t` into the flat `out`, block by block of BLOCK samples (the
+    prange) and, in a block, run by run (:func:`next_run`):
+    ``RUN(times, new_t, data, out, sg, j, e, state, count)`` evaluates samples
+    j, j + 1, … (up to e − 1), all in segment sg (`data`: the flat table, or what
+    the method reads instead), and returns where it stopped and `count`. A
+    method that batches its samples (the Bézier tile) has ``START(data)`` make a
+    block's `state`, where `count` samples wait, stops a run when CAP are
+    waiting, and has ``FLUSH(out, state, count)`` evaluate them (called at two
+    places only, so LLVM keeps it one function)."""
     m = new_t.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
+        state = START(data)
+        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
         while j < hi:
             sg, e = next_run(times, new_t, j, hi, sg)
-            RUN(times, new_t, data, out, sg, j, e)
-            j = e
+            while j < e:
+                j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
+                if count == CAP:
+                    FLUSH(out, state, count)
+                    count = np.int64(0)
+        FLUSH(out, state, count)
 
 
-def _each_run_of(run, name):
+@ir_inline
+def no_state(data):
+    return 0
+
+
+@ir_inline
+def no_flush(out, state, count):
+    return None
+
+
+def _eval_of(name, run, start=no_state, flush=no_flush, cap=-1):
     """The evaluation loop (a RowLoop over the new times) whose runs `run` evaluates."""
-    return rowloop(rows=1)(specialise(_each_run, name, RUN=run))
+    return rowloop(rows=1)(specialise(_eval, name, START=start, RUN=run, FLUSH=flush, CAP=cap))
 
 
 @inline
 def _segment(times, seg, sg):
-    """(t0, h, n): the start and length of segment sg, and where its table row starts;
-    and x0, a zero of the output type (like() on an array inside the loop stops the vectoriser)."""
+    """(t0, h, n, x0): the start and length of segment sg, where its table row starts,
+    and a zero of the output type (like() on an array inside the loop stops the vectoriser)."""
     t0 = times[sg]
     return t0, times[sg + 1] - t0, NSEG * sg, like(seg, 0.0)
 
 
-@inline
-def _run_slerp(times, new_t, seg, out, sg, j, e):
+@ir_inline
+def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     p = seg_q(seg, n, 0)
     q = seg_q(seg, n, 12)
     c = seg_arc(seg, n, 16)
     for i in range(j, e):
         store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+    return e, count
 
 
-_eval_slerp = _each_run_of(_run_slerp, "_slerp")
-
-
-@inline
-def _run_nlerp(times, new_t, seg, out, sg, j, e):
+@ir_inline
+def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     p = seg_q(seg, n, 0)
     q = seg_q(seg, n, 12)
     for i in range(j, e):
         t = like(x0, (load1(new_t, i) - t0) / h)
         store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
+    return e, count
 
 
-_eval_nlerp = _each_run_of(_run_nlerp, "_nlerp")
+@ir_inline
+def run_squad(times, new_t, seg, out, sg, j, e, state, count):
+    t0, h, n, x0 = _segment(times, seg, sg)
+    q0, s0, s1, q1 = seg_keys(seg, n)
+    c0 = seg_arc(seg, n, 16)
+    c1 = seg_arc(seg, n, 21)
+    for i in range(j, e):
+        t = like(x0, (load1(new_t, i) - t0) / h)
+        pq = arc_slerp(q0, q1, c0, t)
+        ps = arc_slerp(s0, s1, c1, t)
+        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
+    return e, count
 
 
 @inline
@@ -286,9 +320,12 @@ def tile_arc(tile, c, lane):
 
 
 @kernel
-def bezier_tile(tile, u, res, rows, count, out):
-    """Evaluate the `count` samples waiting in a tile (SIMD over its lanes, into `res`
-    column by column), then store them in their rows of `out`."""
+def bezier_tile(out, state, count):
+    """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
+    SIMD over its lanes, into `res` column by column), then store them in their rows of
+    `out`. The FLUSH of the Bézier method: a kernel of its own, called at _eval's two
+    places (one copy of the long de Casteljau chain)."""
+    tile, u, res, rows = state
     for lane in range(count):
         r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
                        tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), load1(u, lane))
@@ -301,52 +338,27 @@ def bezier_tile(tile, u, res, rows, count, out):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
 
 
-@rowloop(rows=1)
-def _eval_bezier(times, new_t, seg, out):
-    m = new_t.shape[0]
-    x0 = like(seg, 0.0)  # a scalar of the output type (like() on an array inside the loop stops the vectoriser)
-    for blk in prange((m + BLOCK - 1) // BLOCK):
-        j = blk * BLOCK
-        hi = min(m, j + BLOCK)
-        sg = 0
-        # samples wait in a tile: their segments' rows column by column, u, and the sample
-        tile = np.empty(NSEG * TILE, seg.dtype)
-        u = np.empty(TILE, seg.dtype)
-        res = np.empty(4 * TILE, seg.dtype)
-        rows = np.empty(TILE, np.int64)
-        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            t0 = times[sg]
-            h = times[sg + 1] - t0
-            n = NSEG * sg
-            for i in range(j, e):
-                for c in range(NSEG):
-                    tile[c * TILE + count] = seg[n + c]
-                u[count] = like(x0, (new_t[i] - t0) / h)
-                rows[count] = i
-                count += 1
-                if count == TILE:
-                    bezier_tile(tile, u, res, rows, count, out)
-                    count = np.int64(0)
-            j = e
-        bezier_tile(tile, u, res, rows, count, out)
+@ir_inline
+def start_bezier(seg):
+    """A block's tile: its samples' segment rows column by column, u, the results, the sample rows."""
+    return (np.empty(NSEG * TILE, seg.dtype), np.empty(TILE, seg.dtype), np.empty(4 * TILE, seg.dtype),
+            np.empty(TILE, np.int64))
 
 
-@inline
-def _run_squad(times, new_t, seg, out, sg, j, e):
+@ir_inline
+def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
+    """Samples j, j + 1, … wait in the tile until the run ends or the tile is full."""
     t0, h, n, x0 = _segment(times, seg, sg)
-    q0, s0, s1, q1 = seg_keys(seg, n)
-    c0 = seg_arc(seg, n, 16)
-    c1 = seg_arc(seg, n, 21)
-    for i in range(j, e):
-        t = like(x0, (load1(new_t, i) - t0) / h)
-        pq = arc_slerp(q0, q1, c0, t)
-        ps = arc_slerp(s0, s1, c1, t)
-        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
-
-
-_eval_squad = _each_run_of(_run_squad, "_squad")
+    tile, u, res, rows = state
+    i = j
+    while i < e and count < TILE:
+        for c in range(NSEG):
+            tile[c * TILE + count] = seg[n + c]
+        u[count] = like(x0, (new_t[i] - t0) / h)
+        rows[count] = i
+        count += 1
+        i += 1
+    return i, count
 
 
 # Sorted new times go through the table piece by piece: each piece of
@@ -404,13 +416,7 @@ def _arc_rate(seg, n, c, p):
 ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy of _run_rates, _run_cubic
 
 
-@inline
-def _arc_rate(seg, n, c, p):
-    a = seg_arc(seg, n, c)
-    return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
-
-
-def _run_rates(times, new_t, seg, out, sg, j, e):
+def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
     """Angular velocity (``ORDER`` 1) or acceleration (2) of the curve of the method
     whose table ``KIND`` is (see :func:`_segments`) on one run of samples (`out` flat
     (3m,)): the derivative rules of :mod:`quatarray._rates` on the table's fixed arcs
@@ -463,10 +469,11 @@ def _run_rates(times, new_t, seg, out, sg, j, e):
         store1(out, 3 * i, v[0] * scale)
         store1(out, 3 * i + 1, v[1] * scale)
         store1(out, 3 * i + 2, v[2] * scale)
+    return e, count
 
 
 
-def _run_cubic(times, new_t, data, out, sg, j, e):
+def _run_cubic(times, new_t, data, out, sg, j, e, state, count):
     """``method="cubic"``: samples of the curve (``ORDER`` 0: quaternions, flat (4m,)),
     its angular velocity (1) or acceleration (2) (flat (3m,)) on one run of samples,
     from `data` = (the keys, flat (4K,); the segments' coefficients, flat (9(K − 1),), see
@@ -507,6 +514,7 @@ def _run_cubic(times, new_t, data, out, sg, j, e):
             store1(out, 3 * i, v[0])
             store1(out, 3 * i + 1, v[1])
             store1(out, 3 * i + 2, v[2])
+    return e, count
 
 
 
@@ -698,7 +706,7 @@ def resample_unit(t, nt, q, method, order=0):
     elif m:
         seg = np.empty((k - 1, NSEG), q.dtype)
         _SEGMENTS[method](q, c_out, c_in, seg)
-        _METHODS[method].evaluate(t, flat_nt, seg.reshape(-1), out.reshape(-1))
+        _EVALS[method](t, flat_nt, seg.reshape(-1), out.reshape(-1))
     return out.reshape(nt.shape + Q)
 
 
@@ -716,7 +724,10 @@ class Method(NamedTuple):
 
     kind: int  # the fixed arcs its table rows hold (``KIND`` of _segments)
     controls: Callable  # (unit keys (K, 4), float64 times (K,)) -> (c_out, c_in), each (K, 4)
-    evaluate: object  # the evaluation loop (times, new_t, seg, out), a RowLoop
+    run: object  # RUN of _eval: the samples of one run from their segment's table row
+    start: object = no_state  # START of _eval: a block's state (samples waiting)
+    flush: object = no_flush  # FLUSH of _eval: evaluate the samples waiting
+    cap: int = -1  # CAP of _eval: how many samples may wait (-1: none wait)
     # a method without a segment table (cubic: one global system over all keys) does
     # all of resample_unit itself: resample(t, nt, q, order) -> the result
     resample: Callable = None
@@ -732,22 +743,24 @@ def _squad_controls(q, t):
 
 
 _METHODS = {
-    "bezier": Method(1, controls_bezier, _eval_bezier),
-    "slerp": Method(0, _no_controls, _eval_slerp),
-    "nlerp": Method(3, _no_controls, _eval_nlerp),
-    "squad": Method(2, _squad_controls, _eval_squad),
-    "cubic": Method(-1, None, None, _resample_cubic),
+    "bezier": Method(1, controls_bezier, run_bezier, start_bezier, bezier_tile, TILE),
+    "slerp": Method(0, _no_controls, run_slerp),
+    "nlerp": Method(3, _no_controls, run_nlerp),
+    "squad": Method(2, _squad_controls, run_squad),
+    "cubic": Method(-1, None, None, resample=_resample_cubic),
 }
 _TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
+# each table method's compiled loops: the evaluation loop, the table, and both in pieces
+_EVALS = {name: _eval_of(f"_{name}", m.run, m.start, m.flush, m.cap) for name, m in _TABLED.items()}
 _SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in _TABLED.items()}
 _PIECES = {
-    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(m.evaluate.py_func, "_piece")),
+    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(_EVALS[name].py_func, "_piece")),
                                      _segments_1=ir_inline(specialise(_SEGMENTS[name].py_func, "_piece"))))
     for name, m in _TABLED.items()
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
-_RATES = {(name, order): _each_run_of(inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)),
-                                      f"_rates_{name}_{order}")
+_RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
+                                  inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
           for name, m in _TABLED.items() for order in (1, 2)}
-_EVAL_CUBIC = {order: _each_run_of(inline(specialise(_run_cubic, f"_{order}", ORDER=order)), f"_cubic_{order}")
+_EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", inline(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}
