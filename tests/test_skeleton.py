@@ -253,6 +253,41 @@ def test_resample_rate_matches_spline_and_interp(six):
     assert r.world()[1].shape == (r.frames, len(clip.joints), 3)
 
 
+@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
+def test_resample_equals_spline_per_joint_bitwise(six, rng, method):
+    """All joints in one pass give exactly what spline gives each joint alone: even
+    times at a rate, uneven key times, new times in any order, joints that skip."""
+    clip = io.read_bvh(six)
+    uneven = clip.replace(times=np.cumsum(rng.uniform(0.005, 0.05, clip.frames)))
+    shuffled = rng.permutation(np.linspace(uneven.times[0], uneven.times[-1], 3 * clip.frames))
+    for c, kw in ((clip, dict(rate=75)), (uneven, dict(times=shuffled))):
+        r = c.resample(method=method, **kw)
+        for j in range(len(c.joints)):
+            if c.orders[j]:
+                ref = qa.spline(c.times, c.rotations[:, j], r.times, method=method)
+                assert np.array_equal(r.rotations[:, j], ref), (method, c.joints[j])
+            else:
+                assert np.array_equal(r.rotations[:, j], np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4)))
+
+
+def test_spline_streams_float32_and_lane_groups(rng):
+    """The multi-stream engine on more streams than one lane group, float32 kept, equal
+    to spline stream by stream; the columns it does not own are left alone."""
+    from quatarray._streams import LANES, spline_streams
+
+    k, j = 30, LANES + 3
+    t = np.cumsum(rng.uniform(0.5, 1.5, k))
+    keys = (qa.from_rotvec(np.cumsum(rng.normal(0, 0.4, (k, j, 3)), axis=0)) * 1.01).astype(np.float32)
+    keys[1::4] *= -1
+    nt = np.linspace(t[0], t[-1], 101)
+    for method in ("bezier", "slerp", "nlerp", "squad"):
+        out = np.full((nt.size, j + 1, 4), 7, np.float32)
+        spline_streams(t, nt, np.concatenate([keys, keys[:, :1]], axis=1), np.arange(j), method, out)
+        ref = np.stack([qa.spline(t, keys[:, i], nt, method=method) for i in range(j)], axis=1)
+        assert ref.dtype == np.float32 and np.array_equal(out[:, :j], ref), method
+        assert (out[:, j] == 7).all()
+
+
 def test_resample_needs_rate_or_times(six):
     clip = io.read_bvh(six)
     with pytest.raises(ValueError):
