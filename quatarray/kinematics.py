@@ -6,18 +6,21 @@ constant rate and applies its exact exponential, so a constant angular
 velocity is integrated without error (to rounding), whatever the step.
 
 The integration is a scan (each orientation is the one before times the
-step's exponential), so in one thread it is bounded by the latency of the
-dependent chain of quaternion products, about four multiply-adds deep per
-step (about 5 ns a step measured on the 2-core CI machine). The step
-exponentials (a square root, a sincos) are a separate vectorised pass
-before it (about 10 ns a step there).
+step's exponential). What bounds it (10⁶ steps, float64, one thread of the
+2-core CI machine, CPU time): the step exponentials (a square root, a
+sincos: a separate vectorised pass) take about 10 ns a step; one chain of
+products is bound by its latency (each product waits for the one before,
+four multiply-adds deep): about 15 ns a step; the scan therefore runs four
+chains interleaved (:func:`_scan`), which the core overlaps: about 6 ns a
+step, near the cost of one pass over the output (about 5-8 ns a step for
+reading and writing 32 bytes).
 Streams of at least ``QUATARRAY_PARALLEL_MIN_ROWS`` samples are cut into one
 block per numba thread, run in Python threads (the kernels release the GIL;
 no numba parallel loop, whose compilation would cost seconds of a cold first
-call): each block's exponentials and its local products from the identity
-(block 0 from q0), then the block ends are carried in turn and multiplied
-into the later blocks by :func:`quatarray.multiply` (multi-threaded):
-see :func:`_integrate`.
+call): pass 1 gives each block's exponentials and its local products from
+the identity (block 0 from q0); the block ends are carried in turn (a few
+products); pass 2 multiplies the rows of the later blocks by their carry,
+every thread taking a share of every block: see :func:`_integrate`.
 """
 
 import threading
@@ -84,21 +87,64 @@ def _exponentials_far(omega, h, mean, out):
             E.store4(out, k + 1, (np.cos(half), s * v[0], s * v[1], s * v[2]))
 
 
+@inline
+def scan_step(out, k, acc, body, unit):
+    """out[k] = e_k ⊗ acc (space) or acc ⊗ e_k (body), e_k = out[k] on entry, in float64
+    (``np.float64``: numba's ``float()`` keeps float32); with `unit` (float32 rows) e_k
+    is normalised in float64 first, so the norm does not drift by the float32
+    rounding of the steps. Returns the new acc."""
+    f = E.load4(out, k)
+    e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+    if unit:
+        e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
+    acc = E.qmul(acc, e) if body else E.qmul(e, acc)
+    E.store4(out, k, acc)
+    return acc
+
+
+CHAINS = 4  # independent product chains per scan (instruction-level parallelism)
+
+
 @kernel
 def _scan(out, q0, body, unit):
     """In place, out[k] = e_k ⊗ out[k−1] (space) or out[k−1] ⊗ e_k (body) from
-    out[−1] = q0: out[k] holds the step exponential e_k on entry. Carried in
-    float64 (``np.float64``: numba's ``float()`` keeps float32); with `unit`
-    (float32 rows) each e_k is normalised in float64 first, so the norm does not
-    drift by the float32 rounding of the steps."""
-    acc = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
-    for k in range(out.shape[0]):
-        f = E.load4(out, k)
-        e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
-        if unit:
-            e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
-        acc = E.qmul(acc, e) if body else E.qmul(e, acc)
-        E.store4(out, k, acc)
+    out[−1] = q0: out[k] holds the step exponential e_k on entry.
+
+    One chain of products is bound by its latency (each product waits for the one
+    before: four multiply-adds deep). So the rows are cut into ``CHAINS`` parts
+    whose local products (the first from q0, the others from the identity) run
+    interleaved in one loop, as independent chains the core overlaps; then each
+    part but the first is multiplied by the end of the part before it (a loop free
+    of the chain)."""
+    n = out.shape[0]
+    m = n // CHAINS if n >= 4 * CHAINS else 0  # short scans: one chain
+    one = (1.0, 0.0, 0.0, 0.0)
+    a0 = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
+    a1 = a2 = a3 = one
+    if m == 0:
+        for k in range(n):
+            a0 = scan_step(out, k, a0, body, unit)
+        return
+    for k in range(m):
+        a0 = scan_step(out, k, a0, body, unit)
+        a1 = scan_step(out, m + k, a1, body, unit)
+        a2 = scan_step(out, 2 * m + k, a2, body, unit)
+        a3 = scan_step(out, 3 * m + k, a3, body, unit)
+    for k in range(4 * m, n):
+        a3 = scan_step(out, k, a3, body, unit)
+    carry = a0  # the end of the part before, in float64
+    last = a0
+    for c in range(1, CHAINS):
+        # the last local product is still in float64 (a3 for the last part)
+        hi = n if c == CHAINS - 1 else (c + 1) * m
+        for k in range(c * m, hi - 1):
+            f = E.load4(out, k)
+            local = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+            E.store4(out, k, E.qmul(carry, local) if body else E.qmul(local, carry))
+        end = a1 if c == 1 else (a2 if c == 2 else a3)
+        last = E.qmul(carry, end) if body else E.qmul(end, carry)
+        E.store4(out, hi - 1, last)
+        carry = last
 
 
 def _block(w, h, out, q0, mean, body):
@@ -108,31 +154,62 @@ def _block(w, h, out, q0, mean, body):
     _scan(out[1:], q0, body, out.dtype == np.float32)
 
 
+@kernel
+def _carry_in(rows, carry, body):
+    """In place, rows[k] = carry ⊗ rows[k] (body) or rows[k] ⊗ carry (space), in float64."""
+    c = (np.float64(carry[0]), np.float64(carry[1]), np.float64(carry[2]), np.float64(carry[3]))
+    for k in range(rows.shape[0]):
+        f = E.load4(rows, k)
+        x = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+        E.store4(rows, k, E.qmul(c, x) if body else E.qmul(x, c))
+
+
+def _threads(jobs):
+    """Run ``fn(*args)`` for each (fn, args) of `jobs`: the first in this thread, the
+    others in Python threads (the kernels release the GIL)."""
+    threads = [threading.Thread(target=fn, args=args) for fn, args in jobs[1:]]
+    for th in threads:
+        th.start()
+    jobs[0][0](*jobs[0][1])
+    for th in threads:
+        th.join()
+
+
 def _integrate(w, h, out, q0, mean, body):
-    """The whole stream into `out` (row 0 = q0): one block, or, for long streams, one
-    block per thread (Python threads: the kernels release the GIL), each from the
-    identity but the first; then the block ends are carried and multiplied into the
-    later blocks (:func:`quatarray.multiply`, itself multi-threaded)."""
+    """The whole stream into `out` (row 0 = q0): one block, or, for long streams, a
+    blocked scan in two parallel passes. Pass 1: one block per thread (exponentials
+    and local products, each block from the identity but the first). Then each
+    block's carry (the true end of the block before it: a few products). Pass 2: the
+    rows of the later blocks are multiplied by their block's carry, every thread
+    taking an equal share of every block."""
     out[0] = q0
     steps = out.shape[0] - 1
     nb = _blocks(out.shape[0])
     size = -(-steps // nb)
     cuts = [min(b * size, steps) for b in range(nb + 1)]
     one = np.array([1.0, 0.0, 0.0, 0.0])
-    jobs = [(w[a:c + 1], h[a:c], out[a:c + 1], q0 if b == 0 else one, mean, body)
-            for b, (a, c) in enumerate(zip(cuts[:-1], cuts[1:]))]
-    threads = [threading.Thread(target=_block, args=job) for job in jobs[1:]]
-    for th in threads:
-        th.start()
-    _block(*jobs[0])
-    for th in threads:
-        th.join()
-    carry = out[cuts[1]].astype(np.float64)  # where block 1 starts
-    for a, c in zip(cuts[1:-1], cuts[2:]):
-        local = out[a + 1 : c + 1]
-        cq = carry.astype(out.dtype)
-        qa_multiply(cq, local, out=local) if body else qa_multiply(local, cq, out=local)
-        carry = out[c].astype(np.float64)
+    _threads([(_block, (w[a:c + 1], h[a:c], out[a:c + 1], q0 if b == 0 else one, mean, body))
+              for b, (a, c) in enumerate(zip(cuts[:-1], cuts[1:]))])
+    if nb == 1:
+        return
+    carries = [None, out[cuts[1]].astype(np.float64)]  # block 0 ends true
+    for b in range(2, nb):  # the true end of block b − 1: its local end, carried in
+        end = out[cuts[b]].astype(np.float64)
+        carries.append(qa_multiply(carries[-1], end) if body else qa_multiply(end, carries[-1]))
+    shares = [[] for _ in range(nb)]
+    for b in range(1, nb):
+        a, c = cuts[b] + 1, cuts[b + 1] + 1
+        part = -(-(c - a) // nb)
+        for i in range(nb):
+            lo, hi = min(a + i * part, c), min(a + (i + 1) * part, c)
+            if hi > lo:
+                shares[i].append((out[lo:hi], carries[b]))
+    _threads([(_apply_shares, (sh, body)) for sh in shares if sh])
+
+
+def _apply_shares(shares, body):
+    for rows, carry in shares:
+        _carry_in(rows, carry, body)
 
 
 # --------------------------------------------------------------------------
