@@ -36,6 +36,7 @@ import dask.array as da  # noqa: E402
 
 import quatarray as qa  # noqa: E402
 import quatarray.dask as qd  # noqa: E402
+import quatarray.dask.windows as qdw  # noqa: E402
 from quatarray import _jit  # noqa: E402
 
 N_CONVERT = 10_000_000
@@ -201,7 +202,7 @@ def test_spline_dask_floor(benchmark, stream, client):
         placed.append((where, client.scatter([t[w0:w1], keys[w0:w1], nt[a:b]], workers=where)))
 
     def run():
-        tasks = [client.submit(qd._spline_task, wt, [wk], False, wn, "bezier", None, workers=where, pure=False)
+        tasks = [client.submit(qdw._spline_task, wt, [wk], False, wn, "bezier", None, workers=where, pure=False)
                  for where, (wt, wk, wn) in placed]
         distributed.wait(tasks)
         return tasks

@@ -28,8 +28,9 @@ _MODULES = {
     "euler": ["as_euler", "from_euler"],
     "interpolation": [
         "lerp", "nlerp", "slerp", "double", "bisect", "bezier_controls", "bezier",
-        "squad", "unflip", "spline", "angular_velocity",
+        "squad", "unflip", "angular_velocity",
     ],
+    "splines": ["spline"],  # not `spline.py`: importing it would shadow the function
     "transforms": ["VQS", "VQM", "interpolate"],
     "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],

@@ -14,80 +14,9 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like
+from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
+from ._jit import CACHE, element, exponent_scales, inline, like
 from ._trig import atan2
-
-
-# Row access. ``load4(a, i)`` reads row i of an (n, 4) array, ``load3`` of an
-# (n, 3) array (the row length must be exactly 4 resp. 3: the front end
-# guarantees it). Compiled, a C-contiguous array is addressed as a flat
-# buffer at the literal stride 4 (3), which lets LLVM vectorise the row loops;
-# other layouts (strided, broadcast) index ``a[i, j]``. Without the JIT the
-# plain-Python bodies below run.
-
-
-def load4(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2], a[i, 3])
-
-
-def store4(out, i, q):
-    out[i, 0] = q[0]
-    out[i, 1] = q[1]
-    out[i, 2] = q[2]
-    out[i, 3] = q[3]
-
-
-def load3(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2])
-
-
-def store3(out, i, v):
-    out[i, 0] = v[0]
-    out[i, 1] = v[1]
-    out[i, 2] = v[2]
-
-
-@overload(load4, jit_options={"cache": CACHE})
-def _load4(a, i):
-    if flat_rows(a):
-        return lambda a, i: (
-            flat_load(a, 4 * i), flat_load(a, 4 * i + 1), flat_load(a, 4 * i + 2), flat_load(a, 4 * i + 3)
-        )
-    return load4
-
-
-@overload(store4, jit_options={"cache": CACHE})
-def _store4(out, i, q):
-    if flat_rows(out):
-
-        def impl(out, i, q):
-            flat_store(out, 4 * i, q[0])
-            flat_store(out, 4 * i + 1, q[1])
-            flat_store(out, 4 * i + 2, q[2])
-            flat_store(out, 4 * i + 3, q[3])
-
-        return impl
-    return store4
-
-
-@overload(load3, jit_options={"cache": CACHE})
-def _load3(a, i):
-    if flat_rows(a):
-        return lambda a, i: (flat_load(a, 3 * i), flat_load(a, 3 * i + 1), flat_load(a, 3 * i + 2))
-    return load3
-
-
-@overload(store3, jit_options={"cache": CACHE})
-def _store3(out, i, v):
-    if flat_rows(out):
-
-        def impl(out, i, v):
-            flat_store(out, 3 * i, v[0])
-            flat_store(out, 3 * i + 1, v[1])
-            flat_store(out, 3 * i + 2, v[2])
-
-        return impl
-    return store3
 
 
 @element

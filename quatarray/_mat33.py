@@ -7,55 +7,8 @@ they never allocate, validate or raise and keep the float type of their
 arguments.
 """
 
-from numba import types
-from numba.extending import overload
-
-from ._jit import CACHE, element, flat_store
-
-
-@element
-def load33(a, i):
-    """Matrix ``a[i]`` of an ``(n, 3, 3)`` array."""
-    return (
-        a[i, 0, 0], a[i, 0, 1], a[i, 0, 2],
-        a[i, 1, 0], a[i, 1, 1], a[i, 1, 2],
-        a[i, 2, 0], a[i, 2, 1], a[i, 2, 2],
-    )  # fmt: skip
-
-
-def store33(out, i, m):
-    """``out[i] = m`` for an ``(n, 3, 3)`` array.
-
-    Compiled, a C-contiguous output is written as a flat buffer at the
-    literal stride 9 (as ``_elements.store4`` does at stride 4), which lets
-    LLVM vectorise the row loop: into a freshly allocated output, whose pages
-    the system faults in during the loop, about 20 % faster (N = 2·10⁶);
-    into a warm ``out=`` the same (memory-bound either way). Other layouts
-    index ``out[i, j, k]``.
-    """
-    out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = m[0], m[1], m[2]
-    out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = m[3], m[4], m[5]
-    out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = m[6], m[7], m[8]
-
-
-@overload(store33, jit_options={"cache": CACHE})
-def _store33(out, i, m):
-    if isinstance(out, types.Array) and out.ndim == 3 and out.layout == "C" and out.aligned:
-
-        def impl(out, i, m):
-            j = 9 * i
-            flat_store(out, j, m[0])
-            flat_store(out, j + 1, m[1])
-            flat_store(out, j + 2, m[2])
-            flat_store(out, j + 3, m[3])
-            flat_store(out, j + 4, m[4])
-            flat_store(out, j + 5, m[5])
-            flat_store(out, j + 6, m[6])
-            flat_store(out, j + 7, m[7])
-            flat_store(out, j + 8, m[8])
-
-        return impl
-    return store33
+from ._access import load33, store33  # noqa: F401  (row access, importable from here too)
+from ._jit import element
 
 
 @element

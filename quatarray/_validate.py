@@ -317,3 +317,48 @@ def scan(kernel, q, axis, fname):
     if shape[0]:
         kernel(m.reshape(out.shape), out)
     return np.moveaxis(out.reshape(shape), 0, axis % lead)
+
+
+# ---- key streams: (K, 4) keys and their strictly increasing times
+
+
+def key_array(keys, name="keys", k_min=2):
+    """`keys` as a float array of shape (K, 4) with K ≥ `k_min`."""
+    a = check_core(as_float(keys, name), name, (4,))
+    if a.ndim != 2:
+        raise shape_error(name, "(K, 4)", a.shape)
+    if a.shape[0] < k_min:
+        raise ValueError(f"Expected `{name}` to hold at least {k_min} keys, got {a.shape[0]}.")
+    return a
+
+
+def key_times(times, k=None, name="times"):
+    """`times` as an array of shape (K,) (`k` keys, when given) that strictly increases."""
+    t = np.asarray(times)
+    check_times(t, k, name)
+    i = first_not_increasing(t)
+    if i is not None:
+        raise not_increasing(name, i, t[i], t[i + 1])
+    return t
+
+
+def check_times(t, k, name):
+    """The dtype and shape rules for key times (a numpy or a Dask array)."""
+    if t.dtype.kind not in "biuf":
+        raise TypeError(f"Expected `{name}` to have a real dtype, got {t.dtype}.")
+    if t.ndim != 1 or (k is not None and t.shape[0] != k):
+        raise ValueError(f"Expected `{name}` to have shape ({'K' if k is None else k},), got {tuple(t.shape)}.")
+
+
+def first_not_increasing(t):
+    """The first i with ``not t[i] < t[i + 1]`` (nan included), or None."""
+    bad = ~(t[1:] > t[:-1])
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def not_increasing(name, i, before, after):
+    """The error for ``name[i + 1] = after`` not above ``name[i] = before``."""
+    return ValueError(
+        f"Expected `{name}` to be strictly increasing, got {name}[{i + 1}] = {after.item()} "
+        f"after {name}[{i}] = {before.item()}."
+    )

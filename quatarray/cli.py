@@ -2,7 +2,9 @@
 
 Every verb streams its input chunk by chunk (``--chunk ROWS``), so memory
 stays bounded whatever the file size; reading and writing live in
-:mod:`quatarray.io`. Exit status: 0 success, 1 bad data, 2 bad usage (an
+:mod:`quatarray.io`, what a convert or resample job is (targets, new times,
+the drivers) in :mod:`quatarray.jobs`, the ``--scheduler`` jobs in
+:mod:`quatarray.dask.files`; this module is the argument parsing over them. Exit status: 0 success, 1 bad data, 2 bad usage (an
 output that cannot be written, or no memory, included), 128 + N when stopped
 by signal N (SIGINT, SIGTERM, SIGHUP: the temporary output is removed).
 Errors are one line on stderr naming the file, the line or row and what is
@@ -22,18 +24,12 @@ import threading
 
 import numpy as np
 
-from .io import (
-    DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer,
-    output_format, read_times, rechunk,
-)
-from .io.clean import dots as row_dots, norms as row_norms
-from .io.formats import FORMATS, is_zarr, output_format
-
-METHODS = ("bezier", "slerp", "nlerp", "squad")
-TARGETS = ("quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic), "
-           "positions (world joint positions of a BVH clip: npy (F, J, 3), csv/parquet t joint x y z)")
-QUAT_FIELDS = ["qw", "qx", "qy", "qz"]
-_PIECE = 1 << 16  # rows per kernel call in convert (see cmd_convert)
+from . import jobs
+from .io import DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, open_stream, open_writer
+from .io.clean import clean_pair, dots as row_dots, norms as row_norms
+from .io.formats import FORMATS, is_zarr, output_format, plain_number
+from .io.streams import pair_rows, paired
+from .jobs import METHODS, QUAT_FIELDS, TARGETS, library_error, no_rows
 
 
 # --------------------------------------------------------------------------
@@ -70,95 +66,14 @@ def _progress(args, total, desc):
                 leave=False, dynamic_ncols=True)
 
 
-def _no_rows(name):
-    return DataError(f"{name}: no valid rows left")
-
-
-def _num(x):
-    """A number as messages show it: plain and exact (``1311868164.5``, not ``np.float64(…)``)."""
-    return repr(float(x))
-
-
-def _lib_error(name, exc):
-    """A library ValueError on file data → a one-line DataError."""
-    return DataError(f"{name}: {str(exc).splitlines()[0]}")
-
-
 # --------------------------------------------------------------------------
 # convert
-
-
-def _euler_seq(seq, option, example):
-    """`seq` if it is an Euler sequence, else a UsageError naming `option`."""
-    if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))
-            and seq[0] != seq[1] and seq[1] != seq[2]):
-        raise UsageError(
-            f"{option}: SEQ is three axes from xyz (extrinsic) or XYZ (intrinsic), "
-            f"no axis twice in a row, e.g. {example}"
-        )
-    return seq
-
-
-def _target(to, degrees):
-    """(fields, npy core shape, function) for ``--to``; the function maps (n, 4) unit
-    quaternions to the target and takes an optional ``out=`` array of its result shape."""
-    import quatarray as qa
-
-    angles = to in ("rotvec", "axis-angle") or to.startswith("euler:")
-    if degrees and not angles:
-        raise UsageError(f"--degrees applies to rotvec, axis-angle and euler outputs, not {to}")
-    if to == "quat":
-        def quat(q, out=None):
-            if out is None:
-                return q
-            np.copyto(out, q)
-            return out
-
-        return QUAT_FIELDS, (4,), quat
-    if to == "xyzw":  # a permutation of columns: no kernel to load for it
-        return ["qx", "qy", "qz", "qw"], (4,), lambda q, out=None: np.take(q, [1, 2, 3, 0], axis=1, out=out)
-    if to == "matrix":
-        return [f"r{i}{j}" for i in range(3) for j in range(3)], (3, 3), qa.as_matrix
-    if to == "rotvec":
-        return ["rx", "ry", "rz"], (3,), lambda q, out=None: qa.as_rotvec(q, degrees=degrees, out=out)
-    if to == "axis-angle":
-        def axis_angle(q, out=None):
-            axis, ang = qa.as_axis_angle(q, degrees=degrees)
-            if out is None:
-                return np.column_stack([axis, ang])
-            out[:, :3], out[:, 3] = axis, ang
-            return out
-
-        return ["ax", "ay", "az", "angle"], (4,), axis_angle
-    if to.startswith("euler:"):
-        seq = _euler_seq(to[6:], f"--to {to}", "euler:ZXY")
-
-        from .euler import euler_locked
-
-        def euler(q, out=None):
-            e, locked = euler_locked(q, seq, degrees)
-            euler.locked += locked  # rows at gimbal lock, for the note (no warnings: threads)
-            if out is None:
-                return e
-            out[...] = e
-            return out
-
-        euler.locked = 0
-        return [f"e{k + 1}_{a}" for k, a in enumerate(seq)], (3,), euler
-    raise UsageError(f"--to {to}: expected one of {TARGETS}")
-
-
-def gimbal_note(name, locked, err):
-    """The note for rows converted to Euler angles at gimbal lock (scipy's rule applied)."""
-    if locked:
-        print(f"{name}: gimbal lock in {locked} row{'s' if locked != 1 else ''}: the third angle "
-              "was set to 0 there (as scipy does)", file=err)
 
 
 def prepare_convert(args):
     """Check ``--to`` once, before any input runs (each run makes its own converter)."""
     if not args.scheduler and args.to != "positions":
-        _target(args.to, args.degrees)
+        jobs.target(args.to, args.degrees)
 
 
 def cmd_convert(args):
@@ -168,7 +83,7 @@ def cmd_convert(args):
         return _dask_call("convert_file", args.IN, args.OUT, to=args.to, degrees=args.degrees,
                           layout=args.layout or "wxyz", chunk=args.chunk, scheduler=args.scheduler,
                           on_invalid=args.on_invalid, force=args.force)
-    fields, core, fn = _target(args.to, args.degrees)
+    fields, core, fn = jobs.target(args.to, args.degrees)
     if args.to != "quat" and output_format(args.OUT) == "tum":
         raise UsageError(f"{args.OUT}: a TUM output holds quaternions only (written qx qy qz qw); --to {args.to} "
                          "cannot go in it: use --to quat, or a .csv, .parquet or .npy output")
@@ -177,21 +92,9 @@ def cmd_convert(args):
     clean = Cleaner(reader, args.on_invalid)
     with open_writer(args.OUT, fields, core, time=reader.has_time, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "convert") as bar:
-        for ch in reader:
-            n = len(ch)
-            ch = clean(ch)
-            # An .npy OUT lends reused, already-faulted arrays for the kernel's output
-            # and copies them into the file in a background thread. Pieces of
-            # _PIECE rows keep those arrays small and the kernel on its serial
-            # variant: the second core is the writer's.
-            for a in range(0, len(ch), _PIECE):
-                part = ch.slice(a, a + _PIECE)
-                w.write(fn(part.data, out=w.buffer(len(part), part.data.dtype)), part.t, part.pos)
-            bar.update(n)
-        if w.rows == 0:
-            raise _no_rows(args.IN)
+        jobs.convert_stream(reader, clean, fn, w, bar)
     clean.report(sys.stderr)
-    gimbal_note(args.IN, getattr(fn, "locked", 0), sys.stderr)
+    jobs.gimbal_note(args.IN, getattr(fn, "locked", 0), sys.stderr)
     return 0
 
 
@@ -199,128 +102,9 @@ def cmd_convert(args):
 # resample
 
 
-class _RateTimes:
-    """New times t0 + k / rate, handed out interval by interval, in pieces."""
-
-    def __init__(self, rate):
-        if not (rate > 0 and np.isfinite(rate)):
-            raise UsageError(f"--rate must be a positive number, got {rate}")
-        self.rate = float(rate)
-        self.t0 = None
-        self.k = 0
-
-    def end(self, b, closed):
-        """The count of new times up to `b` (the next index not handed out)."""
-        t0, r = self.t0, self.rate
-        kb = max(self.k, int(np.ceil((b - t0) * r)) - 1)
-        inside = (lambda k: t0 + k / r <= b) if closed else (lambda k: t0 + k / r < b)
-        while inside(kb):
-            kb += 1
-        while kb > self.k and not inside(kb - 1):
-            kb -= 1
-        return kb
-
-    def _check_resolution(self, b):
-        """Refuse a step finer than float64 times near `b` can tell apart (they would repeat)."""
-        ulp = float(np.spacing(max(abs(self.t0), abs(b))))
-        if 1 / self.rate < 2 * ulp:
-            raise UsageError(
-                f"--rate {self.rate:g}: finer than the time resolution: times near {b:.6g} s are "
-                f"{ulp:.3g} s apart in float64, so new times would repeat; use at most {1 / (2 * ulp):.3g} Hz"
-            )
-
-    def count(self, b, closed):
-        """How many new times up to `b` are still to come."""
-        self._check_resolution(b)
-        return self.end(b, closed) - self.k
-
-    def pieces(self, b, closed, size):
-        """The new times up to `b`, at most `size` at a time."""
-        kb = self.end(b, closed)
-        while self.k < kb:
-            ks = np.arange(self.k, min(self.k + size, kb), dtype=np.float64)
-            self.k += ks.size
-            yield self.t0 + ks / self.rate
-
-    def finish(self, last):
-        pass
-
-
-class _FileTimes:
-    """Times from a file: ``--times`` (new times, non-decreasing, inside the key times)
-    or ``--in-times`` (the key times of a stream without a time column, increasing)."""
-
-    def __init__(self, path, fmt="auto", order="non-decreasing", times=None):
-        self.name = path
-        # `times`: what load() gave, read once for all the inputs of a run
-        self.times, self.where = self.load(path, fmt, order) if times is None else times
-        self.p = 0
-        self.t0 = None
-
-    @staticmethod
-    def load(path, fmt="auto", order="non-decreasing"):
-        """``(times, where)`` of a times file: float64 times, checked finite and in
-        `order`, and ``where(i)`` naming time i's line for messages."""
-        times, where = read_times(path, fmt if fmt in ("npy", "csv") else "auto", order=order, locate=True)
-        times = np.asarray(times, dtype=np.float64)
-        if times.size == 0:
-            raise DataError(f"{path}: no times")
-        return times, where
-
-    def _end(self, b, closed):
-        if self.p == 0 and self.times[0] < self.t0:
-            raise DataError(f"{self.where(0)}: time {_num(self.times[0])} is before the first key time "
-                            f"{_num(self.t0)}")
-        return max(self.p, int(np.searchsorted(self.times, b, side="right" if closed else "left")))
-
-    def count(self, b, closed):
-        return self._end(b, closed) - self.p
-
-    def upto(self, b, closed):
-        """All the new times up to `b` (a view of the file's times)."""
-        j = self._end(b, closed)
-        out, self.p = self.times[self.p:j], j
-        return out
-
-    def pieces(self, b, closed, size):
-        out = self.upto(b, closed)
-        for a in range(0, out.size, size):
-            yield out[a:a + size]
-
-    def finish(self, last):
-        if self.p < self.times.size:
-            raise DataError(f"{self.where(self.p)}: time {_num(self.times[self.p])} is after the last key time "
-                            f"{_num(last)}")
-
-
-def timed_chunks(reader, in_rate, in_times=None):
-    """The reader's chunks, with times when the file has none: ``row / in_rate``, or row
-    i's time from `in_times` (a :class:`_FileTimes` of ``--in-times``, as many times
-    as the stream has rows). A dropped row keeps its time out, as the rows after it keep
-    theirs."""
-    if reader.has_time:
-        yield from reader
-        return
-    rows = 0
-    chunks = iter(reader)
-    for ch in chunks:
-        k = ch.row0 + np.arange(len(ch))
-        if in_times is None:
-            yield ch.replace(t=k / in_rate)
-        elif len(ch) and k[-1] >= in_times.times.size:
-            rows = ch.row0 + len(ch) + sum(len(c) for c in chunks)
-            break
-        else:
-            yield ch.replace(t=in_times.times[k])
-        rows = ch.row0 + len(ch)
-    if in_times is not None and rows + reader.skipped != in_times.times.size:
-        raise DataError(f"{in_times.name} has {in_times.times.size} times but {reader.name} has "
-                        f"{rows + reader.skipped} rows; they must match")
-
-
 def prepare_resample(args):
     """What all inputs share, checked before any runs: the new times of ``--times``."""
-    args.new_times = _FileTimes.load(args.times) if args.times and not args.scheduler else None
+    args.new_times = jobs.FileTimes.load(args.times) if args.times and not args.scheduler else None
 
 
 def cmd_resample(args):
@@ -332,76 +116,15 @@ def cmd_resample(args):
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
                           method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force,
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
-    import quatarray as qa
-
-    newt = _RateTimes(args.rate) if args.rate is not None else _FileTimes(args.times, times=args.new_times)
+    newt = jobs.new_times(args.rate, args.times, args.new_times)
     reader = _open(args, args.IN)
-    keyed = args.in_rate is not None or args.in_times is not None
-    if not reader.has_time and not keyed:
-        raise UsageError(f"{args.IN}: has no time column; give its sampling rate with --in-rate HZ "
-                         "or its times with --in-times FILE")
-    if reader.has_time and keyed:
-        opt = "--in-rate" if args.in_rate is not None else "--in-times"
-        print(f"{args.IN}: has a time column; {opt} ignored", file=sys.stderr)
-    in_times = _FileTimes(args.in_times, "auto", "increasing") if args.in_times and not reader.has_time else None
+    jobs.check_key_times(args.IN, reader.has_time, args.in_rate, args.in_times, err=sys.stderr)
+    in_times = jobs.FileTimes(args.in_times, "auto", "increasing") if args.in_times and not reader.has_time else None
     check_output(args.OUT, [args.IN] + [f for f in (args.times, args.in_times) if f], args.force)
-    if args.in_rate is not None and not args.in_rate > 0:
-        raise UsageError(f"--in-rate must be positive, got {args.in_rate}")
     clean = Cleaner(reader, args.on_invalid, ordered=True)
-
-    def emit(w, keys, lo, hi, closed):
-        # The new times of keys[lo:hi] come and are written at most --chunk at a time, each
-        # piece from the keys around it (two of halo each side, as for the intervals below):
-        # memory stays bounded whatever the rate.
-        w.reserve(newt.count(keys.t[hi], closed))
-        for nt in newt.pieces(keys.t[hi], closed, args.chunk):
-            a = max(int(np.searchsorted(keys.t, nt[0], side="right")) - 3, 0)
-            b = min(int(np.searchsorted(keys.t, nt[-1], side="left")) + 3, len(keys))
-            near = keys.slice(a, b)
-            try:
-                q = qa.spline(near.t, near.data, nt, method=args.method)
-            except ValueError as exc:
-                raise _lib_error(args.IN, exc) from None
-            pos = None
-            if near.pos is not None:
-                pos = np.column_stack([np.interp(nt, near.t, near.pos[:, k]) for k in range(3)])
-            w.write(q, nt if reader.has_time or keyed else None, pos)
-
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:
-        buf, lo, last_q = None, 0, None
-        step = max(min(args.chunk, 1 << 16), 8)
-        for ch in timed_chunks(reader, args.in_rate, in_times):
-            n = len(ch)
-            ch = clean(ch)
-            bar.update(n)
-            if not len(ch):
-                continue
-            q = ch.data
-            # sign continuity across chunks: unflip continuing from the last key
-            q = qa.unflip(q if last_q is None else np.concatenate([last_q[None], q]))
-            q = q if last_q is None else q[1:]
-            last_q = q[-1]
-            ch = ch.replace(data=q)
-            if buf is None:
-                newt.t0 = float(ch.t[0])
-            buf = ch if buf is None else concat([buf, ch])
-            # Intervals of `step` keys [lo, lo + step) are interpolated from their keys
-            # plus two of halo on each side (the Bézier and squad controls of a key use
-            # its neighbours), so each spline call sees at most step + 5 keys.
-            while len(buf) - 3 - lo >= step:
-                a = max(lo - 2, 0)
-                emit(w, buf.slice(a, lo + step + 3), lo - a, lo + step - a, closed=False)
-                lo += step
-            if lo > 2:
-                buf = buf.slice(lo - 2, len(buf))
-                lo = 2
-        if buf is None:
-            raise _no_rows(args.IN)
-        if len(buf) < 2:
-            raise DataError(f"{args.IN}: resampling needs at least 2 valid rows, got {len(buf)}")
-        emit(w, buf.slice(max(lo - 2, 0), len(buf)), min(lo, 2), len(buf) - 1 - max(lo - 2, 0), closed=True)
-        newt.finish(float(buf.t[-1]))
+        jobs.resample_stream(reader, clean, newt, w, args.method, args.chunk, args.in_rate, in_times, bar)
     clean.report(sys.stderr)
     return 0
 
@@ -432,7 +155,7 @@ def cmd_unflip(args):
                 w.write(q, ch.t, ch.pos)
             bar.update(n)
         if w.rows == 0:
-            raise _no_rows(args.IN)
+            raise no_rows(args.IN)
     clean.report(sys.stderr)
     return 0
 
@@ -468,90 +191,18 @@ def cmd_integrate(args):
             try:
                 q = qa.integrate_angular_velocity(rate, t, q0=q0, frame=args.frame, hold=args.hold)
             except ValueError as exc:
-                raise _lib_error(args.IN, exc) from None
+                raise library_error(args.IN, exc) from None
             q = q if last is None else q[1:]
             last = (t[-1], rate[-1], q[-1])
             w.write(q, ch.t)
         if w.rows == 0:
-            raise _no_rows(args.IN)
+            raise no_rows(args.IN)
     clean.report(sys.stderr)
     return 0
 
 
 # --------------------------------------------------------------------------
 # paired verbs: rotate, compose
-
-
-def _paired(ra, rb, chunk):
-    """Chunks of two streams in step; a one-row stream is broadcast against the other."""
-    ia, ib = iter(rechunk(ra, chunk)), iter(rechunk(rb, chunk))
-    a0, a1 = next(ia, None), None
-    b0, b1 = next(ib, None), None
-    if a0 is not None and len(a0) == 1:
-        a1 = next(ia, None)
-    if b0 is not None and len(b0) == 1:
-        b1 = next(ib, None)
-    if a0 is None or b0 is None:
-        return
-    a_one = len(a0) == 1 and a1 is None
-    b_one = len(b0) == 1 and b1 is None
-
-    def rest(first, second, it):
-        yield first
-        if second is not None:
-            yield second
-        yield from it
-
-    if a_one and not b_one:
-        for b in rest(b0, b1, ib):
-            yield a0, b, len(b)
-        return
-    if b_one and not a_one:
-        for a in rest(a0, a1, ia):
-            yield a, b0, len(a)
-        return
-    ga, gb = rest(a0, a1, ia), rest(b0, b1, ib)
-    na = nb = 0
-    while True:
-        a, b = next(ga, None), next(gb, None)
-        if a is None or b is None:
-            if a is not None or b is not None:
-                na += len(a) if a is not None else 0
-                nb += len(b) if b is not None else 0
-                na += sum(len(x) for x in ga)
-                nb += sum(len(x) for x in gb)
-                raise DataError(f"{ra.name} has {na} rows but {rb.name} has {nb}; they must match (or one has 1 row)")
-            return
-        if len(a) != len(b):
-            na, nb = na + len(a), nb + len(b)
-            na += sum(len(x) for x in ga)
-            nb += sum(len(x) for x in gb)
-            raise DataError(f"{ra.name} has {na} rows but {rb.name} has {nb}; they must match (or one has 1 row)")
-        na += len(a)
-        nb += len(b)
-        yield a, b, len(a)
-
-
-def _clean_pair(ca, cb, a, b):
-    """Check both chunks; in drop mode a row pair goes when either row is bad."""
-    a, ga = ca.check(a)
-    b, gb = cb.check(b)
-    if len(a) == 1 and len(b) > 1:
-        ga = np.repeat(ga, len(b))
-    if len(b) == 1 and len(a) > 1:
-        gb = np.repeat(gb, len(a))
-    good = ga & gb
-    if good.all():
-        return a, b
-    keep = np.flatnonzero(good)
-    ca.dropped += good.size - keep.size
-    a = a if len(a) == 1 else a.take(keep)
-    b = b if len(b) == 1 else b.take(keep)
-    return a, b
-
-
-def _pair_rows(a, b):
-    return max(len(a), len(b)) if min(len(a), len(b)) else 0
 
 
 def _run_paired(args, verb, ra, rb, fields, poses, compute):
@@ -567,9 +218,9 @@ def _run_paired(args, verb, ra, rb, fields, poses, compute):
     total = ra.rows if ra.rows not in (None, 1) else rb.rows
     with open_writer(args.OUT, fields, time=tsrc is not None, pos=poses) as w, \
             _progress(args, total, verb) as bar:
-        for a, b, n in _paired(ra, rb, args.chunk):
-            a, b = _clean_pair(ca, cb, a, b)
-            m = _pair_rows(a, b)
+        for a, b, n in paired(ra, rb, args.chunk):
+            a, b = clean_pair(ca, cb, a, b)
+            m = pair_rows(a, b)
             if m:
                 out, pos = compute(a, b, m, lambda dtype: w.buffer(m, dtype))
                 t = None
@@ -578,7 +229,7 @@ def _run_paired(args, verb, ra, rb, fields, poses, compute):
                 w.write(out, t, pos)
             bar.update(n)
         if w.rows == 0:
-            raise _no_rows(ra.name)
+            raise no_rows(ra.name)
     ca.report(sys.stderr)
     cb.report(sys.stderr)
     return 0
@@ -675,7 +326,7 @@ def cmd_info(args):
         lines.append(("joint", f"{reader.joint} (joints: {others}; choose with --joint)"))
     if reader.has_time and t_first is not None:
         span = float(t_last - t_first)
-        lines.append(("time", f"{_num(t_first)} .. {_num(t_last)} s (span {span:.6g} s)"))
+        lines.append(("time", f"{plain_number(t_first)} .. {plain_number(t_last)} s (span {span:.6g} s)"))
         if not np.isfinite(dt_min):  # no step: a single timed row
             lines.append(("rate", "- (one row)"))
         else:
@@ -728,13 +379,13 @@ def _resample_clip(args):
     clip = _read_clip(args)
     times = None
     if args.times:
-        times = _FileTimes(args.times, "auto").times
+        times = jobs.FileTimes(args.times, "auto").times
     if clip.frames < 2:
         raise DataError(f"{args.IN}: resampling needs at least 2 frames, got {clip.frames}")
     try:
         out = clip.resample(rate=args.rate, times=times, method=args.method)
     except ValueError as exc:
-        raise _lib_error(args.times or args.IN, exc) from None
+        raise library_error(args.times or args.IN, exc) from None
     write_bvh(args.OUT, out)
     return 0
 
@@ -900,7 +551,7 @@ def cmd_warmup(args):
 def cmd_plot(args):
     mod = _optional("plot", "plot")
     if args.seq is not None:
-        _euler_seq(args.seq, f"--seq {args.seq}", "--seq ZXY")
+        jobs.euler_seq(args.seq, f"--seq {args.seq}", "--seq ZXY")
     check_output(args.OUT, [args.IN] + ([args.after] if args.after else []), args.force)
     extra = {k: v for k, v in (("after", args.after), ("seq", args.seq)) if v is not None}
     return int(

@@ -944,7 +944,9 @@ def test_memory_error_is_one_line(capsys, tmp_path, monkeypatch):
     def no_memory(*a, **kw):
         raise MemoryError("Unable to allocate 267. GiB for an array with shape (35800000000000,)")
 
-    monkeypatch.setattr(qa, "as_matrix", no_memory)
+    import quatarray.conversions
+
+    monkeypatch.setattr(quatarray.conversions, "as_matrix", no_memory)  # what convert --to matrix calls
     rc, _, err = cli(capsys, "convert", tmp_path / "q.npy", tmp_path / "o.npy", "--to", "matrix")
     assert rc == 2 and err.strip() == "quatarray convert: error: out of memory; try a smaller --chunk"
     assert _leftovers(tmp_path) == []

@@ -20,6 +20,7 @@ MODULES = [
     "test_euler.py",
     "test_trig.py",
     "test_interpolation.py",
+    "test_splines.py",
     "test_transforms.py",
     "test_align.py",
     "test_kinematics.py",

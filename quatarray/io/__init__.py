@@ -12,6 +12,13 @@ writers can be used on their own::
 Formats: npy (memory-mapped, one chunk mapped at a time), csv with named
 columns, TUM, EuRoC, KITTI poses, parquet (via pyarrow) and BVH; whole BVH clips (every joint) with
 :func:`read_bvh` and :func:`write_bvh`.
+
+Modules: ``readers`` (:func:`open_stream`, :func:`read_times`) over
+``arrays`` (npy, zarr), ``text`` (csv, TUM, EuRoC, KITTI, parquet) and
+``bvh`` (one joint, or whole clips); ``streams`` (:class:`Chunk`, the
+``Reader`` base, chunk iterators re-cut, timed or paired); ``clean`` (row
+checks); ``writers`` (stream outputs) and ``targets`` (block-by-block
+outputs of the Dask file jobs); ``formats`` and ``errors``.
 """
 
 from .bvh import read_bvh, write_bvh

@@ -1,8 +1,9 @@
-"""Whole BVH clips: :func:`read_bvh` and :func:`write_bvh`.
+"""BVH files: whole clips (:func:`read_bvh`, :func:`write_bvh`) and one joint as a stream.
 
-The stream reader of :mod:`quatarray.io.readers` reads one joint of a BVH
-file as a rotation stream; these read and write every joint at once as a
-:class:`quatarray.skeleton.Clip`.
+:class:`BvhReader` (what :func:`quatarray.io.open_stream` opens for a
+``.bvh`` file) reads one joint of a BVH file as a rotation stream;
+:func:`read_bvh` and :func:`write_bvh` read and write every joint at once as
+a :class:`quatarray.skeleton.Clip`.
 
 Reading: each joint's rotation channels, in the order the file lists them,
 are an intrinsic Euler sequence in degrees (``Zrotation Xrotation
@@ -20,16 +21,20 @@ included (see :func:`exact_euler`).
 """
 
 import os
-import tempfile
 import warnings
 
 import numpy as np
 
 from . import formats as F
 from .errors import DataError, UsageError
+from .formats import is_number
+from .streams import Chunk, Reader
 
 END_SUFFIX = "_End"
-MAX_DEGREES = 1e9  # as the stream reader: beyond this an angle has no precision left
+# BVH angles beyond this many degrees are refused: a float64 angle of 1e9 degrees
+# still resolves 1e-7 degrees, one of 1e308 nothing at all (the angle is not reduced
+# mod 360, which would only hide that its rotation is lost)
+MAX_DEGREES = 1e9  # the clip reader and the stream reader alike
 
 
 def _err(name, lineno, what):
@@ -42,16 +47,8 @@ def _floats(tok, name, lineno, what, n):
     try:
         return [float(s) for s in tok]
     except ValueError:
-        bad = next(s for s in tok if not _is_float(s))
+        bad = next(s for s in tok if not is_number(s))
         raise _err(name, lineno, f"not a number: '{F.shown(bad)}'") from None
-
-
-def _is_float(s):
-    try:
-        float(s)
-        return True
-    except ValueError:
-        return False
 
 
 def _hierarchy(lines, name):
@@ -179,7 +176,6 @@ def read_bvh(path, name=None):
     >>> clip.joints[:3], clip.orders[0], clip.rotations.shape, clip.frame_time
     (['Hips', 'Chest', 'Chest2'], 'ZXY', (455, 24, 4), 0.033333)
     """
-    import quatarray as qa
     from ..skeleton import Clip
 
     name = os.fspath(path) if name is None else name
@@ -212,7 +208,7 @@ def read_bvh(path, name=None):
     first_line = len(head) + 1  # line number of the first byte after the header
     nch = sum(len(c) for c in channels)
     motion = _motion(data[cut + 1:] if cut < len(data) else b"", nch, name, first_line, frames, frames_line)
-    return _clip(Clip, qa, name, joints, parents, offsets, channels, ends, motion, frame_time, first_line)
+    return _clip(Clip, name, joints, parents, offsets, channels, ends, motion, frame_time, first_line)
 
 
 def _num(s, typ, name, lineno, what):
@@ -252,14 +248,16 @@ def _motion(buf, nch, name, first_line, frames, frames_line):
     if vals is None or vals.size != held.size * nch:  # find the first word that is not a number
         lines = text.split("\n")
         for i in held:
-            bad = next((s for s in lines[i].split() if not _is_float(s)), None)
+            bad = next((s for s in lines[i].split() if not is_number(s)), None)
             if bad is not None:
                 raise _err(name, first_line + int(i), f"not a number: '{F.shown(bad)}'")
         raise DataError(f"{name}: the MOTION section could not be read as numbers")  # pragma: no cover
     return vals.reshape(held.size, nch), held + first_line
 
 
-def _clip(Clip, qa, name, joints, parents, offsets, channels, ends, motion, frame_time, first_line):
+def _clip(Clip, name, joints, parents, offsets, channels, ends, motion, frame_time, first_line):
+    from ..euler import from_euler
+
     vals, lines = motion
     F_, J = vals.shape[0], len(joints)
     rot = np.empty((F_, J, 4))
@@ -281,7 +279,7 @@ def _clip(Clip, qa, name, joints, parents, offsets, channels, ends, motion, fram
                 raise _err(name, int(lines[i]), f"joint {joints[j]!r}: angle {float(v)!r} out of range "
                                                 f"(finite, |angle| ≤ {MAX_DEGREES:.0e} degrees)")
             order = "".join(chans[k - c0][0].upper() for k in ri)
-            rot[:, j] = qa.from_euler(order, ang, degrees=True)
+            rot[:, j] = from_euler(order, ang, degrees=True)
         c0 += len(chans)
     if not np.isfinite(trans).all():
         i, j = np.argwhere(~np.isfinite(trans).all(axis=2))[0]
@@ -325,11 +323,13 @@ def exact_euler(q, order):
     >>> float(qa.distance(qa.from_euler("ZXY", a), q)[0]) < 1e-14
     True
     """
-    import quatarray as qa
+    from ..algebra import distance, multiply
+    from ..euler import as_euler, from_euler
+    from ..rotation import rotate
 
     q = np.asarray(q, dtype=np.float64)
-    ang = qa.as_euler(q, order, suppress_warnings=True)
-    err = qa.distance(qa.from_euler(order, ang), q)
+    ang = as_euler(q, order, suppress_warnings=True)
+    err = distance(from_euler(order, ang), q)
     fix = np.flatnonzero(~(err <= 1e-13))
     if not fix.size:
         return ang
@@ -337,19 +337,19 @@ def exact_euler(q, order):
     s = 1.0 if (iB - iA) % 3 == 1 else -1.0  # e_A × e_B = s e_C, e_B × e_C = s e_A
     eye = np.eye(3)
     r = q[fix]
-    v = qa.rotate(r, np.broadcast_to(eye[iC], (len(r), 3)))
+    v = rotate(r, np.broadcast_to(eye[iC], (len(r), 3)))
     a = np.arctan2(-v[:, iB], s * v[:, iC])
     b = c = None
     for _ in range(2):  # the branch of a that puts b in [−π/2, π/2]
-        rest = qa.multiply(_axis_quat(iA, -a), r)  # A(a)⁻¹ q = B(b) C(c)
-        w = qa.rotate(rest, np.broadcast_to(eye[iC], (len(r), 3)))
+        rest = multiply(_axis_quat(iA, -a), r)  # A(a)⁻¹ q = B(b) C(c)
+        w = rotate(rest, np.broadcast_to(eye[iC], (len(r), 3)))
         b = np.arctan2(s * w[:, iA], w[:, iC])
         wide = np.abs(b) > np.pi / 2
         if not wide.any():
             break
         a = np.where(wide, a + np.pi, a)
         a = (a + np.pi) % (2 * np.pi) - np.pi
-    rc = qa.multiply(_axis_quat(iB, -b), rest)  # C(c)
+    rc = multiply(_axis_quat(iB, -b), rest)  # C(c)
     c = 2.0 * np.arctan2(rc[:, 1 + iC], rc[:, 0])
     c = (c + np.pi) % (2 * np.pi) - np.pi
     ang[fix] = np.column_stack([a, b, c])
@@ -455,20 +455,14 @@ def write_bvh(path, clip):
     out.append("MOTION")
     out.append(f"Frames: {F_}")
     out.append(f"Frame Time: {_fmt(clip.frame_time)}")
-    folder, base = os.path.split(os.path.abspath(os.fspath(path)))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(("\n".join(out) + "\n").encode("utf-8"))
-            if cols:
-                _write_rows(f, np.column_stack(cols))
-            else:
-                f.write(b"\n" * F_)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from .writers import Writer
+
+    with Writer(path) as w, open(w.tmp, "wb") as f:
+        f.write(("\n".join(out) + "\n").encode("utf-8"))
+        if cols:
+            _write_rows(f, np.column_stack(cols))
+        else:
+            f.write(b"\n" * F_)
 
 
 def _write_rows(f, m):
@@ -528,3 +522,158 @@ def write_positions(path, clip, fmt=None):
             pcsv.write_csv(table.cast(pa.schema([("t", pa.float64()), ("joint", pa.string()), ("x", pa.float64()),
                                                  ("y", pa.float64()), ("z", pa.float64())])), w.tmp,
                            write_options=opts)
+
+
+# --------------------------------------------------------------------------
+# one joint as a stream
+
+
+class BvhReader(Reader):
+    """One joint of a BVH motion-capture file as a quaternion stream.
+
+    The joint's rotation channels, in the order the file lists them, form an
+    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``)
+    in degrees; position channels (the root's) become the position columns;
+    frame i is at time i × Frame Time.
+    """
+
+    format = "bvh"
+    has_time = True
+
+    def __init__(self, path, name, joint, chunk, on_invalid):
+        self.path, self.name, self.chunk = path, name, chunk
+        self.drop = on_invalid == "drop"
+        self.skipped = 0
+        self._parse_header(joint)
+
+    def _parse_header(self, want):
+        name = self.name
+        joints = []  # (name, first channel index, [channel names], line)
+        nch = 0
+        self.motion_line = None
+        with open(self.path, "r", encoding="utf-8", errors="replace") as f:
+            lines = iter(enumerate(f, 1))
+            current = None
+            for lineno, line in lines:
+                tok = line.split()
+                if not tok:
+                    continue
+                key = tok[0].upper()
+                if key in ("ROOT", "JOINT"):
+                    current = " ".join(tok[1:])
+                elif key == "CHANNELS":
+                    try:
+                        k = int(tok[1])
+                    except (IndexError, ValueError):
+                        raise DataError(f"{name}:{lineno}: bad CHANNELS line") from None
+                    chans = tok[2:]
+                    if len(chans) != k:
+                        raise DataError(f"{name}:{lineno}: CHANNELS says {k} channels, lists {len(chans)}")
+                    joints.append((current, nch, chans, lineno))
+                    nch += k
+                elif key == "MOTION":
+                    self.motion_line = lineno
+                    break
+            if self.motion_line is None:
+                if not joints:
+                    if os.path.getsize(self.path) == 0:
+                        raise F.empty(name)
+                    raise DataError(f"{name}:1: not a BVH file (no HIERARCHY/MOTION sections)")
+                raise DataError(f"{name}: no MOTION section")
+            frames = frame_time = None
+            for lineno, line in lines:
+                low = line.strip().lower()
+                if low.startswith("frames:"):
+                    frames = _num(line.split(":", 1)[1], int, name, lineno, "frame count")
+                    self.frames_line = lineno
+                elif low.startswith("frame time:"):
+                    frame_time = _num(line.split(":", 1)[1], float, name, lineno, "frame time")
+                    self.data_line = lineno + 1
+                    break
+                elif low:
+                    raise DataError(f"{name}:{lineno}: expected 'Frames:' and 'Frame Time:' lines")
+        if frame_time is None or not frame_time > 0:
+            raise DataError(f"{name}: missing or non-positive 'Frame Time:'")
+        self.frames, self.frame_time, self.nch = frames, frame_time, nch
+        self.joints = [j[0] for j in joints]
+        if want is None:
+            sel = joints[0]
+        else:
+            sel = next((j for j in joints if j[0] == want), None)
+            if sel is None:
+                raise UsageError(f"{name}: no joint {want!r} (joints: {', '.join(self.joints)})")
+        self.joint, first, chans, lineno = sel
+        rot = [(k, c[0].upper()) for k, c in enumerate(chans) if c.lower().endswith("rotation")]
+        pos = {c[0].upper(): k for k, c in enumerate(chans) if c.lower().endswith("position")}
+        if len(rot) != 3:
+            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 3")
+        self.seq = "".join(a for _, a in rot)
+        self.rot_idx = [first + k for k, _ in rot]
+        self.pos_idx = [first + pos[a] for a in "XYZ"] if all(a in pos for a in "XYZ") else None
+        self.columns = [f"{self.joint}.{chans[k]}" for k in range(len(chans))]
+        self.layout = f"euler {self.seq} (intrinsic, degrees)"
+        self.has_pos = self.pos_idx is not None
+        self.rows = frames
+
+    def where(self, row):
+        return f"{self.name}:{self.data_line + row}"
+
+    def _motion(self):
+        """All frames as an (n, channels) array; frame i sits at line data_line + i."""
+        name, n = self.name, self.nch
+        rows, frame_idx = [], []
+        with open(self.path, "r", encoding="utf-8", errors="replace") as f:
+            for lineno, line in enumerate(f, 1):
+                if lineno < self.data_line:
+                    continue
+                tok = line.split()
+                if not tok:
+                    continue
+                k = lineno - self.data_line
+                if len(tok) != n:
+                    if self.drop:
+                        self.skipped += 1
+                        continue
+                    raise DataError(f"{name}:{lineno}: expected {n} numbers, got {len(tok)}")
+                try:
+                    rows.append(np.array(tok, dtype=np.float64))
+                except ValueError:
+                    if self.drop:
+                        self.skipped += 1
+                        continue
+                    bad = next(s for s in tok if not is_number(s))
+                    raise DataError(f"{name}:{lineno}: not a number: '{F.shown(bad)}'") from None
+                frame_idx.append(k)
+        held = self.skipped + len(rows)
+        if self.frames is not None and held != self.frames:
+            what = (f"{name}:{self.frames_line}: 'Frames:' says {self.frames} frame{'s' if self.frames != 1 else ''}, "
+                    f"the file holds {held}")
+            if not self.drop:
+                raise DataError(what)
+            self.notes.append(f"{what}; read those {held}")
+        if not rows:
+            raise F.empty(name)
+        return np.array(rows), np.array(frame_idx)
+
+    def __iter__(self):
+        from ..euler import from_euler
+
+        motion, idx = self._motion()
+        self.rows = len(motion)
+        t_all = idx * self.frame_time
+        for a in range(0, len(motion), self.chunk):
+            m = motion[a : a + self.chunk]
+            ang = m[:, self.rot_idx]
+            fin = np.isfinite(ang).all(axis=1)
+            huge = fin & (np.abs(np.where(fin[:, None], ang, 0)) > MAX_DEGREES).any(axis=1)
+            if huge.any():
+                i = int(np.argmax(huge))
+                if not self.drop:
+                    v = float(ang[i][np.argmax(np.abs(ang[i]))])
+                    raise DataError(f"{self.where(int(idx[a + i]))}: angle {v!r} out of range "
+                                    f"(|angle| > {MAX_DEGREES:.0e} degrees: no precision left for the rotation)")
+                fin &= ~huge  # a nan row, dropped by the Cleaner
+            q = np.full((len(m), 4), np.nan)
+            q[fin] = from_euler(self.seq, ang[fin], degrees=True)
+            pos = m[:, self.pos_idx] if self.pos_idx else None
+            yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))

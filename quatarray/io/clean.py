@@ -161,6 +161,25 @@ class Cleaner:
                              self.reader.max_projection, plural="non-orthonormal rotation matrices"), file=err)
 
 
+def clean_pair(ca, cb, a, b):
+    """Check both chunks of a pair (:func:`quatarray.io.streams.paired`) with their
+    Cleaners; in drop mode a row pair goes when either row is bad."""
+    a, ga = ca.check(a)
+    b, gb = cb.check(b)
+    if len(a) == 1 and len(b) > 1:
+        ga = np.repeat(ga, len(b))
+    if len(b) == 1 and len(a) > 1:
+        gb = np.repeat(gb, len(a))
+    good = ga & gb
+    if good.all():
+        return a, b
+    keep = np.flatnonzero(good)
+    ca.dropped += good.size - keep.size
+    a = a if len(a) == 1 else a.take(keep)
+    b = b if len(b) == 1 else b.take(keep)
+    return a, b
+
+
 def time_order(t, prev, strict=True):
     """What is wrong with time `t` after `prev`: ``repeated time 2.0 (previous 2.0);
     times must increase`` (``must not decrease`` when not `strict`)."""

@@ -49,6 +49,20 @@ def empty(name):
     return DataError(f"{name}: empty file (no data rows)")
 
 
+def is_number(s):
+    """Whether the text `s` reads as a float."""
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def plain_number(x):
+    """A number as messages show it: plain and exact (``1311868164.5``, not ``np.float64(…)``)."""
+    return repr(float(x))
+
+
 def shown(text, limit=60):
     """`text` as an error message may show it: characters that are not printable
     (control characters, undecodable bytes) escaped as ``repr`` escapes them

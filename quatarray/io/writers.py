@@ -1,7 +1,9 @@
 """Stream writers: npy (appended chunk by chunk), csv, parquet, tum.
 
-Every writer writes to a temporary file beside OUT and renames it over OUT
-in :meth:`Writer.close`; :meth:`Writer.abort` (or leaving a ``with`` block by
+Every writer writes to a temporary file beside OUT (:func:`temporary_beside`)
+and renames it over OUT in :meth:`Writer.close` (:func:`publish`); the
+block-by-block targets of the Dask file jobs (:mod:`quatarray.io.targets`)
+do the same; :meth:`Writer.abort` (or leaving a ``with`` block by
 an exception) removes the temporary file, so a failed or interrupted run
 never leaves a partial OUT.
 """
@@ -65,6 +67,34 @@ def output_mode(out):
     mask = os.umask(0o022)  # reading the umask means setting it: put it back at once
     os.umask(mask)
     return 0o666 & ~mask
+
+
+def temporary_beside(path, suffix=".tmp", folder=False):
+    """A new, empty temporary file (or with `folder`, folder) beside `path`, hidden:
+    ``.<name of path>.<random><suffix>``. Renamed over `path` when done (:func:`publish`),
+    it never crosses file systems, so OUT appears whole or not at all."""
+    where, base = os.path.split(os.path.abspath(path))
+    if folder:
+        return tempfile.mkdtemp(prefix=f".{base}.", suffix=suffix, dir=where)
+    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=suffix, dir=where)
+    os.close(fd)
+    return tmp
+
+
+def publish(tmp, path):
+    """Move the finished temporary file `tmp` over `path`, with the mode `path` gets
+    (:func:`output_mode`; ``mkstemp`` made `tmp` 0600)."""
+    os.chmod(tmp, output_mode(path))
+    os.replace(tmp, path)
+
+
+def pwrite_all(fd, data, at):
+    """Write the bytes of the contiguous array `data` into file `fd` at offset `at`
+    (a positioned write: no seek, no page faults as a memory map would take)."""
+    view = memoryview(data).cast("B")
+    while view:  # a write may take fewer bytes than asked (large writes, signals)
+        done = os.pwrite(fd, view, at)
+        view, at = view[done:], at + done
 
 
 def _size(nbytes):
@@ -151,10 +181,8 @@ class Writer:
         self.path = os.fspath(path)
         self.rows = 0
         self.closed = True  # until the temporary file exists
-        folder, base = os.path.split(os.path.abspath(self.path))
         with self._naming_out():
-            fd, self.tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=suffix, dir=folder)
-            os.close(fd)
+            self.tmp = temporary_beside(self.path, suffix)
             self.closed = False
             self._open()
 
@@ -206,8 +234,7 @@ class Writer:
             return
         with self._naming_out():
             self._finish()
-            os.chmod(self.tmp, output_mode(self.path))
-            os.replace(self.tmp, self.path)
+            publish(self.tmp, self.path)
         self.closed = True
 
     def abort(self):
@@ -302,10 +329,7 @@ class NpyWriter(Writer):
         return self._scratch[k][:n]
 
     def _pwrite(self, data, at):
-        view = memoryview(data).cast("B")
-        while view:  # a write may take fewer bytes than asked (large writes, signals)
-            done = os.pwrite(self.f.fileno(), view, at)
-            view, at = view[done:], at + done
+        pwrite_all(self.f.fileno(), data, at)
 
     def _wait(self):
         """Wait for the write in flight; its error (a full disk, …) is raised here."""

@@ -1,0 +1,173 @@
+"""Per-element interpolation math: one or a few quaternions (4-tuples) and a
+parameter in, a quaternion out, inlined into the row loops of
+:mod:`quatarray.interpolation` and :mod:`quatarray.splines` so they vectorise.
+Like :mod:`quatarray._elements` they never allocate, validate or raise and keep
+the float type of their arguments.
+
+Every slerp here is p cos tθ + v sin tθ on the great arc from p: θ =
+2·atan2(|p − q|, |p + q|) (accurate for identical, nearly identical and
+antipodal pairs, never an arccos) and v the unit tangent at p towards q, kept
+unit and orthogonal to p, so the result is unit for every pair and every t
+(see :func:`arc`). The trigonometry is the branch-free polynomial code of
+:mod:`quatarray._trig`, so the row loops run as SIMD code. t = 0 and t = 1
+give p and q exactly. θ = 0 gives p; an exactly antipodal pair with
+``shortest=False`` (no unique arc) follows p ⊗ (cos tπ, sin tπ, 0, 0), the
+convention of :func:`quatarray.power`.
+"""
+
+import numpy as np
+
+from ._jit import element, inline, like
+from ._trig import half_arc, sincos
+
+
+@inline
+def arc(p, q, shortest):
+    """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
+
+    f = 2 when p·q < 0 and `shortest` is 1.0, else 0 (`shortest` is a float
+    flag: a runtime boolean in the loop keeps LLVM from vectorising); the flip
+    costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|) ∈ [0, π]
+    from the chords a = |p − sq|, b = |p + sq|; v is the unit tangent at p
+    towards sq: sq − p cos θ (cos θ = (b² − a²)/(a² + b²)), made orthogonal to
+    p once more and normalised (never divided by sin θ). Near θ = π (b of a few
+    ulp) its direction is only as certain as p + sq, but it stays a unit
+    tangent, so slerp stays unit for every pair and every t.
+    Where no tangent is left (identical or antipodal ends) v = p ⊗ i: an
+    antipodal pair follows p ⊗ (cos tπ, sin tπ, 0, 0), as :func:`quatarray.power`.
+    """
+    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
+    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
+    d2 = dw * dw + dx * dx + dy * dy + dz * dz
+    s2 = sw * sw + sx * sx + sy * sy + sz * sz
+    flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
+    m2 = s2 if flip else d2
+    p2 = d2 if flip else s2
+    # 2 when flipped, else 0, converted from the boolean (a select or copysign
+    # feeding the weights stops LLVM's vectoriser)
+    sgn = like(d2, 2.0) * flip
+    one = like(d2, 1.0)
+    a = np.sqrt(m2)
+    b = np.sqrt(p2)
+    two = like(a, 2.0)
+    th = two * half_arc(a, b)
+    c = (p2 - m2) / (m2 + p2)  # cos θ
+    k = one - sgn  # ±1: the sign of q on the arc
+    v0 = k * q[0] - c * p[0]
+    v1 = k * q[1] - c * p[1]
+    v2 = k * q[2] - c * p[2]
+    v3 = k * q[3] - c * p[3]
+    e = p[0] * v0 + p[1] * v1 + p[2] * v2 + p[3] * v3
+    v0, v1, v2, v3 = v0 - e * p[0], v1 - e * p[1], v2 - e * p[2], v3 - e * p[3]
+    n2 = v0 * v0 + v1 * v1 + v2 * v2 + v3 * v3
+    nv = one / np.sqrt(n2)
+    v = (v0 * nv, v1 * nv, v2 * nv, v3 * nv)
+    st = two * a * b / (m2 + p2)  # sin θ
+    # no tangent left (|v| ≤ sin θ / 2: rounding only): identical ends (any unit
+    # tangent: sin tθ = 0) or antipodal ones, also p + sq parallel to p (sq a
+    # scaled −p)
+    if n2 <= like(a, 0.25) * st * st:
+        v = (-p[1], p[0], p[3], -p[2])
+    return th, v, sgn
+
+
+@inline
+def slerp4(p, q, t, shortest=0.0):
+    """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
+    hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at
+    t = 0 (sincos(0) = (0, 1)) and t = 1 (±q)."""
+    th, v, sgn = arc(p, q, shortest)
+    s, c = sincos(t * th)
+    r = (c * p[0] + s * v[0], c * p[1] + s * v[1], c * p[2] + s * v[2], c * p[3] + s * v[3])
+    if t == like(t, 1.0):
+        k = like(t, 1.0) - sgn
+        r = (k * q[0], k * q[1], k * q[2], k * q[3])
+    return r
+
+
+@element
+def slerp_call(p, q, t):
+    """:func:`slerp4` (plain great arc) as a called function, compiled once.
+
+    The public Bézier and squad row loops call it six and three times per
+    row; inlining every copy made those kernels take about half a minute to
+    compile (the spline's segment loops are the fast path for resampling).
+    """
+    return slerp4(p, q, t, like(t, 0.0))
+
+
+@inline
+def bezier4(q0, a, b, q1, t):
+    """Spherical cubic Bézier by de Casteljau: six slerps."""
+    p01 = slerp_call(q0, a, t)
+    p12 = slerp_call(a, b, t)
+    p23 = slerp_call(b, q1, t)
+    return slerp_call(slerp_call(p01, p12, t), slerp_call(p12, p23, t), t)
+
+
+@inline
+def squad4(q0, s0, s1, q1, t):
+    """Shoemake's squad: slerp(slerp(q0, q1, t), slerp(s0, s1, t), 2t(1 − t))."""
+    h = like(t, 2.0) * t * (like(t, 1.0) - t)
+    return slerp_call(slerp_call(q0, q1, t), slerp_call(s0, s1, t), h)
+
+
+@inline
+def double4(p, q):
+    """Shoemake's Double: 2(p·q)q − p."""
+    d2 = like(p[0], 2.0) * (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
+    return (d2 * q[0] - p[0], d2 * q[1] - p[1], d2 * q[2] - p[2], d2 * q[3] - p[3])
+
+
+@inline
+def bisect4(p, q):
+    """Shoemake's Bisect: (p + q)/|p + q|."""
+    s = (p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3])
+    n = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + s[3] * s[3])
+    return (s[0] / n, s[1] / n, s[2] / n, s[3] / n)
+
+
+@inline
+def controls4(qp, qn, qx, f_out, f_in):
+    """(a_n, b_n) of key qn between qp and qx: â = bisect(double(qp, qn), qx),
+    a₀ = slerp(qn, â, 1/3), a_n = slerp(qn, a₀, f_out), b_n = slerp(qn, double(a₀, qn), f_in)."""
+    zero = like(f_out, 0.0)
+    a0 = slerp4(qn, bisect4(double4(qp, qn), qx), like(f_out, 1.0) / like(f_out, 3.0), zero)
+    return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
+
+
+@inline
+def lerp4(p, q, s, t):
+    """The linear blend s·p + t·q."""
+    return (s * p[0] + t * q[0], s * p[1] + t * q[1], s * p[2] + t * q[2], s * p[3] + t * q[3])
+
+
+@inline
+def nlerp4(p, q, s, t):
+    """The normalised blend (s·p + t·q)/|s·p + t·q|."""
+    r = lerp4(p, q, s, t)
+    nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+    return (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr)
+
+
+@inline
+def arc_slerp(p, q, c, t):
+    """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`quatarray.splines.put_arc`."""
+    th, v0, v1, v2, v3 = c
+    s, co = sincos(t * th)
+    r = (co * p[0] + s * v0, co * p[1] + s * v1, co * p[2] + s * v2, co * p[3] + s * v3)
+    if t == like(t, 1.0):  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
+        r = q
+    return r
+
+
+@inline
+def bezier_seg(q0, a, b, q1, c0, c1, c2, t):
+    """Segment value at u = t: the level-1 slerps on the three fixed control arcs, then two levels of slerp."""
+    p01 = arc_slerp(q0, a, c0, t)
+    p12 = arc_slerp(a, b, c1, t)
+    p23 = arc_slerp(b, q1, c2, t)
+    zero = like(t, 0.0)
+    p012 = slerp4(p01, p12, t, zero)
+    p123 = slerp4(p12, p23, t, zero)
+    return slerp4(p012, p123, t, zero)

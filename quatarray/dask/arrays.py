@@ -1,0 +1,637 @@
+"""Dask twins of the element-wise functions (one factory) and the blocked scans
+(``cumprod``, ``unflip``, ``integrate_angular_velocity``); see :mod:`quatarray.dask`.
+
+Task functions run the in-memory kernels on one block, serially (:func:`_serial`):
+the scheduler supplies the parallelism.
+"""
+
+import contextlib
+import importlib
+import inspect
+import math
+import operator
+import sys
+import threading
+
+import dask.array as da
+import numpy as np
+from dask.base import tokenize
+from dask.core import flatten as _flatten_keys
+from dask.highlevelgraph import HighLevelGraph
+from dask.layers import ArrayValuesDep
+
+from .. import _WHERE, _jit
+from .._validate import as_float, check_core, is_weak, leading, origin, result_dtype
+
+Q, V, M3 = (4,), (3,), (3, 3)
+
+# --------------------------------------------------------------------------
+# kernels run serially inside tasks
+
+_serial_lock = threading.Lock()
+_serial_depth = 0
+_serial_saved = None
+
+
+@contextlib.contextmanager
+def _serial():
+    """Run row kernels on one thread while any task runs in this process.
+
+    The scheduler (threads or worker processes) is the parallel layer; numba
+    threads inside every task would oversubscribe the cores.
+    """
+    global _serial_depth, _serial_saved
+    with _serial_lock:
+        if _serial_depth == 0:
+            _serial_saved = _jit.PARALLEL_MIN_ROWS
+            _jit.PARALLEL_MIN_ROWS = sys.maxsize
+        _serial_depth += 1
+    try:
+        yield
+    finally:
+        with _serial_lock:
+            _serial_depth -= 1
+            if _serial_depth == 0:
+                _jit.PARALLEL_MIN_ROWS = _serial_saved
+
+
+def _public(name):
+    """The in-memory function `name`, from the module the package registers it in
+    (``quatarray._MODULES``): tasks pickle the name, workers import the module."""
+    return getattr(importlib.import_module(f"quatarray.{_WHERE[name]}"), name)
+
+
+# --------------------------------------------------------------------------
+# element-wise functions: one factory
+
+
+class _Block:
+    """The per-block call of a public function (picklable by value: a name and constants).
+
+    With `located`, the first argument is the block's first index along the
+    leading axes: a row an error message names is counted in the whole array.
+    """
+
+    def __init__(self, name, arrays, consts, nout, located=False):
+        self.name, self.arrays, self.consts, self.nout = name, tuple(arrays), dict(consts), nout
+        self.located = located
+
+    def __call__(self, *blocks):
+        start = ()
+        if self.located:
+            start, blocks = blocks[0], blocks[1:]
+        kwargs = dict(self.consts)
+        kwargs.update(zip(self.arrays, blocks))
+        with _serial(), origin(start):
+            return _public(self.name)(**kwargs)
+
+    def __dask_tokenize__(self):
+        return (type(self).__name__, self.name, self.arrays, sorted(self.consts.items(), key=str), self.nout,
+                self.located)
+
+    def __repr__(self):
+        return f"quatarray.{self.name}"
+
+
+def _float_rule(dtypes):
+    return result_dtype([np.empty(0, d) for d in dtypes])
+
+
+def _su2_rule(dtypes):
+    return np.dtype(np.complex64) if _float_rule(dtypes) == np.float32 else np.dtype(np.complex128)
+
+
+def _from_su2_rule(dtypes):
+    return np.dtype(np.float32) if all(d in (np.complex64, np.float32) for d in dtypes) else np.dtype(np.float64)
+
+
+def _bool_rule(dtypes):
+    return np.dtype(np.bool_)
+
+
+def _check_dtype(x, name, rule):
+    """The dtype a block of `x` is computed in (TypeError for complex/object, as in memory)."""
+    if rule is _from_su2_rule and x.dtype.kind == "c":
+        return x.dtype
+    return as_float(np.empty(0, x.dtype), name).dtype
+
+
+def as_dask(x, name="q", core=Q):
+    """`x` as a Dask array whose last ``len(core)`` axes are one chunk.
+
+    numpy arrays and lists become one-chunk Dask arrays (Dask unifies their
+    chunks with the other arguments); Dask arrays chunked along a core axis
+    are rechunked to hold that axis whole.
+
+    Examples
+    --------
+    >>> import dask.array as da, quatarray.dask as qd
+    >>> qd.as_dask(da.zeros((10, 4), chunks=(5, 2))).chunks
+    ((5, 5), (4,))
+    """
+    if not isinstance(x, da.Array):
+        a = np.asarray(x)
+        x = da.from_array(a, chunks=a.shape or -1)
+    check_core(x, name, core)
+    known_chunks(x, name)
+    k = len(core)
+    split = {ax: -1 for ax in range(x.ndim - k, x.ndim) if len(x.chunks[ax]) > 1}
+    if split:
+        x = x.rechunk(split)
+    return x
+
+
+def known_chunks(x, name):
+    """A ValueError for a Dask array whose chunk sizes are unknown (after boolean indexing)."""
+    if any(math.isnan(c) for cs in x.chunks for c in cs):
+        raise ValueError(f"Expected `{name}` with known chunk sizes, got unknown ones; "
+                         f"call `{name}.compute_chunk_sizes()` first.")
+
+
+def _leaves(tmp, name, outs, metas):
+    """Split a blockwise array whose blocks are tuples into one array per output."""
+    keys = list(_flatten_keys(tmp.__dask_keys__()))
+    res = []
+    for j, (core, meta) in enumerate(zip(outs, metas)):
+        leaf = f"{name}-{j}"
+        zeros = (0,) * len(core)
+        dsk = {(leaf,) + k[1:] + zeros: (operator.getitem, k, j) for k in keys}
+        graph = HighLevelGraph.from_collections(leaf, dsk, dependencies=[tmp])
+        chunks = tmp.chunks + tuple((c,) for c in core)
+        res.append(da.Array(graph, leaf, chunks=chunks, meta=meta))
+    return tuple(res)
+
+
+def _elementwise(name, arrays, outs, rule=_float_rule):
+    """Build the Dask twin of the element-wise public function `name`.
+
+    arrays: ((parameter, core shape), ...) — the array arguments;
+    outs: core shapes of the results; rule: result dtype from input dtypes.
+    """
+
+    def wrapper(*args, **kwargs):
+        sig = inspect.signature(_public(name))
+        bound = sig.bind(*args, **kwargs)
+        if bound.arguments.pop("out", None) is not None:
+            raise TypeError(
+                f"quatarray.dask.{name} takes no `out=`: Dask arrays are immutable "
+                "(store the lazy result with dask.array.store or .to_zarr)."
+            )
+        bound.apply_defaults()
+        given = dict(bound.arguments)
+        given.pop("out", None)
+        xs, names, cores, dtypes = [], [], [], []
+        for pname, core in arrays:
+            value = given[pname]
+            if is_weak(value) and core == ():
+                continue  # a Python scalar stays a constant: it never upcasts float32
+            x = as_dask(value, pname, core)
+            dtypes.append(_check_dtype(x, pname, rule))
+            given.pop(pname)
+            xs.append(x)
+            names.append(pname)
+            cores.append(core)
+        if not xs:
+            raise TypeError(f"quatarray.dask.{name} needs at least one array argument.")
+        lead = leading(xs, cores, names)  # the in-memory broadcasting message
+        dtype = rule(dtypes)
+        nlead = len(lead)
+        out_lead = tuple(f"l{i}" for i in range(nlead))
+        pairs = []
+        for x, pname, core in zip(xs, names, cores):
+            k = len(core)
+            ind = out_lead[nlead - (x.ndim - k) :] + tuple(f"{pname}.{j}" for j in range(k))
+            pairs += [x, ind]
+        call = _Block(name, names, given, len(outs), located=nlead > 0)
+        token = tokenize(call, *xs)
+        if nlead:  # each block is told where it starts, for errors that name a row
+            chunkss, unified = da.core.unify_chunks(*pairs)
+            pairs[::2] = unified
+            lead_chunks = tuple(chunkss[i] for i in out_lead)
+            starts = [np.cumsum((0,) + c)[:-1].tolist() for c in lead_chunks]
+            where = {b: tuple(s[i] for s, i in zip(starts, b)) for b in np.ndindex(*map(len, lead_chunks))}
+            pairs = [ArrayValuesDep(lead_chunks, where), out_lead] + pairs
+        metas = [np.empty((0,) * (nlead + len(c)), dtype) for c in outs]
+        if len(outs) == 1:
+            ocore = tuple(f"out.{j}" for j in range(len(outs[0])))
+            return da.blockwise(
+                call, out_lead + ocore, *pairs, new_axes=dict(zip(ocore, outs[0])),
+                concatenate=True, meta=metas[0], name=f"{name}-{token}", align_arrays=False,
+            )
+        tmp = da.blockwise(
+            call, out_lead, *pairs, concatenate=True, meta=np.empty((0,) * nlead), name=f"{name}-tuple-{token}",
+            align_arrays=False,
+        )
+        return _leaves(tmp, f"{name}-{token}", outs, metas)
+
+    wrapper.__name__ = wrapper.__qualname__ = name
+    wrapper.__module__ = __package__  # shown as quatarray.dask.<name>, its public home
+    argtext = ", ".join(f"`{p}` {('(..., ' + ', '.join(map(str, c)) + ')') if c else '(...)'}" for p, c in arrays)
+    wrapper.__doc__ = (
+        f"Dask version of :func:`quatarray.{name}`: a lazy Dask array, block by block.\n\n"
+        f"Same arguments as the in-memory function (no ``out=``); array arguments: {argtext}.\n"
+        "Blocks are computed by the same kernel, so the result equals the in-memory one bitwise.\n"
+    )
+    return wrapper
+
+
+ELEMENTWISE = {
+    "multiply": ((("p", Q), ("q", Q)), (Q,)),
+    "conjugate": ((("q", Q),), (Q,)),
+    "inverse": ((("q", Q),), (Q,)),
+    "normalize": ((("q", Q),), (Q,)),
+    "norm": ((("q", Q),), ((),)),
+    "dot": ((("p", Q), ("q", Q)), ((),)),
+    "exp": ((("q", Q),), (Q,)),
+    "log": ((("q", Q),), (Q,)),
+    "power": ((("q", Q), ("t", ())), (Q,)),
+    "canonical": ((("q", Q),), (Q,)),
+    "angle": ((("q", Q),), ((),)),
+    "distance": ((("p", Q), ("q", Q)), ((),)),
+    "rotate": ((("q", Q), ("v", V)), (V,)),
+    "as_matrix": ((("q", Q),), (M3,)),
+    "from_matrix": ((("m", M3),), (Q,)),
+    "as_rotvec": ((("q", Q),), (V,)),
+    "from_rotvec": ((("r", V),), (Q,)),
+    "as_axis_angle": ((("q", Q),), (V, ())),
+    "from_axis_angle": ((("axis", V), ("angle", ())), (Q,)),
+    "as_xyzw": ((("q", Q),), (Q,)),
+    "from_xyzw": ((("a", Q),), (Q,)),
+    "as_left_matrix": ((("q", Q),), ((4, 4),)),
+    "as_right_matrix": ((("q", Q),), ((4, 4),)),
+    "as_su2": ((("q", Q),), ((2, 2),), _su2_rule),
+    "from_su2": ((("m", (2, 2)),), (Q,), _from_su2_rule),
+    "as_euler": ((("q", Q),), (V,)),
+    "from_euler": ((("angles", V),), (Q,)),
+    "lerp": ((("p", Q), ("q", Q), ("t", ())), (Q,)),
+    "nlerp": ((("p", Q), ("q", Q), ("t", ())), (Q,)),
+    "slerp": ((("p", Q), ("q", Q), ("t", ())), (Q,)),
+    "double": ((("p", Q), ("q", Q)), (Q,)),
+    "bisect": ((("p", Q), ("q", Q)), (Q,)),
+    "bezier": ((("q0", Q), ("a", Q), ("b", Q), ("q1", Q), ("t", ())), (Q,)),
+    "as_mrp": ((("q", Q),), (V,)),
+    "from_mrp": ((("p", V),), (Q,)),
+    "as_gibbs": ((("q", Q),), (V,)),
+    "from_gibbs": ((("g", V),), (Q,)),
+    "rotation_between": ((("u", V), ("v", V)), (Q,)),
+    "approx_equal": ((("p", Q), ("q", Q)), ((),), _bool_rule),
+}
+
+for _name, _spec in ELEMENTWISE.items():
+    globals()[_name] = _elementwise(_name, *_spec)
+del _name, _spec
+
+# --------------------------------------------------------------------------
+# blocked scans along a leading axis: cumprod and unflip
+
+
+def _lead_axis(x, axis, fname):
+    lead = x.ndim - 1
+    if lead == 0:
+        raise ValueError(f"Expected `q` to have shape (N, ..., 4) for {fname}, got {tuple(x.shape)}.")
+    if not -lead <= axis < lead:
+        raise ValueError(f"Expected `axis` in [{-lead}, {lead - 1}] for `q` of shape {tuple(x.shape)}, got {axis}.")
+    return axis % lead
+
+
+def _rows(a, which, axis):
+    """Row 0 or −1 of `a` along `axis`, keeping the axis."""
+    return np.take(a, [which], axis=axis)
+
+
+# cumprod: local running products, each chunk's total carried forward
+
+
+def _cumprod_local(block, axis):
+    from ..algebra import cumprod
+
+    with _serial():
+        return cumprod(block, axis=axis)
+
+
+def _cumprod_summary(local, axis):
+    return _rows(local, -1, axis) if local.shape[axis] else None
+
+
+def _cumprod_carry(carry, prev, cur):
+    # carry: product of every chunk before `prev`; returns the product through `prev`.
+    if carry is None:
+        return prev
+    from ..algebra import multiply
+
+    with _serial():
+        return multiply(carry, prev)
+
+
+def _cumprod_apply(local, carry, axis):
+    if carry is None:
+        return local
+    from ..algebra import multiply
+
+    with _serial():
+        return multiply(carry, local)
+
+
+# unflip: local flips, then one sign per chunk carried forward. The carry stops
+# where the chain breaks: a row whose dot product with the row before is 0 or nan
+# (a zero or non-finite row, or an exact quarter turn) is kept as it is whatever
+# the sign before it, so from there on the block's own flips are the global ones.
+
+
+def _sign_breaks(local, axis):
+    """How many leading rows of a locally unflipped block (per line along `axis`,
+    shaped like a row with a last axis of 1) take the sign carried into the block:
+    up to the first row whose dot product with the row before is 0 or nan."""
+    n = local.shape[axis]
+    a = np.moveaxis(local, axis, 0)
+    if n < 2:
+        return np.expand_dims(np.full(a.shape[1:-1], n), (axis, -1))
+    from ..algebra import dot
+
+    with _serial():
+        d = dot(a[1:], a[:-1])  # as unflip's kernel (its sign aside: 0 and nan stay)
+    broken = ~((d < 0) | (d > 0))
+    reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n)
+    return np.expand_dims(reach, (axis, -1))
+
+
+def _unflip_local(block, axis):
+    from ..interpolation import unflip
+
+    with _serial():
+        local = unflip(block, axis=axis)
+    return local, _sign_breaks(local, axis)
+
+
+def _unflip_summary(local, axis):
+    local, reach = local
+    n = local.shape[axis]
+    return (_rows(local, 0, axis), _rows(local, -1, axis), reach == n) if n else None
+
+
+def unflip_carry(carry, prev, cur):
+    # carry: True where chunk `prev` was negated; returns the same for chunk `cur`.
+    # prev[2]: whether prev's carry reaches its last row (no break in the chain)
+    last = prev[1] if carry is None else np.where(carry & prev[2], -prev[1], prev[1])
+    from ..algebra import dot
+
+    with _serial():
+        d = dot(cur[0], last)
+    return (np.asarray(d) < 0)[..., None]
+
+
+def _unflip_apply(local, carry, axis):
+    local, reach = local
+    if carry is None:
+        return local
+    shape = [1] * local.ndim
+    shape[axis] = local.shape[axis]
+    row = np.arange(local.shape[axis]).reshape(shape)
+    return np.where(carry & (row < reach), -local, local)
+
+
+def carry_all(carry_fn, summaries):
+    """Every chunk's carry along one scan (None for the first chunk), in one task.
+
+    An empty chunk (summary None) is passed over: the next chunk's carry comes from
+    the last chunk that had rows."""
+    carries, carry, prev = [], None, None
+    for cur in summaries:
+        if cur is None:
+            carries.append(None)
+            continue
+        if prev is not None:
+            carry = carry_fn(carry, prev, cur)
+        carries.append(carry)
+        prev = cur
+    return carries
+
+
+def _scan(x, axis, kind, local_fn, summary_fn, carry_fn, apply_fn):
+    """A blocked prefix scan along leading `axis` of `x` (core axis whole).
+
+    Per block: ``local_fn`` (the in-memory scan of the block) and
+    ``summary_fn`` (what the next block needs, e.g. the last row). Per line of
+    blocks along `axis`: one task runs ``carry_fn`` down the summaries (a
+    cheap sequential pass over one small item per block). Per block again:
+    ``apply_fn(local, carry)`` gives the global result. The graph depth stays
+    four whatever the number of chunks.
+    """
+    token = tokenize(kind, x, axis)
+    lname, sname, cname, oname = (f"{kind}-{p}-{token}" for p in ("local", "summary", "carry", "out"))
+    nb = x.numblocks[axis]
+    dsk = {}
+    for idx in np.ndindex(*x.numblocks):
+        i = idx[axis]
+        dsk[(lname,) + idx] = (local_fn, (x.name,) + idx, axis)
+        line = idx[:axis] + (0,) + idx[axis + 1 :]
+        if nb == 1:
+            dsk[(oname,) + idx] = (apply_fn, (lname,) + idx, None, axis)
+            continue
+        dsk[(sname,) + idx] = (summary_fn, (lname,) + idx, axis)
+        if i == 0:
+            dsk[(cname,) + line] = (
+                carry_all, carry_fn, [(sname,) + idx[:axis] + (j,) + idx[axis + 1 :] for j in range(nb)]
+            )
+        dsk[(oname,) + idx] = (apply_fn, (lname,) + idx, (operator.getitem, (cname,) + line, i), axis)
+    graph = HighLevelGraph.from_collections(oname, dsk, dependencies=[x])
+    return da.Array(graph, oname, chunks=x.chunks, meta=x._meta)
+
+
+def _scan_input(q, axis, fname):
+    x = as_dask(q, "q", Q)
+    dtype = as_float(np.empty(0, x.dtype), "q").dtype
+    if x.dtype != dtype:
+        x = x.astype(dtype)
+    return x, _lead_axis(x, axis, fname)
+
+
+def cumprod(q, axis=0):
+    """Dask version of :func:`quatarray.cumprod`: out[i] = out[i−1]⊗q[i] along a leading axis.
+
+    A blocked scan: every chunk's running product is computed in parallel,
+    each chunk's total is carried across the borders (a short chain of
+    quaternion products), and the carried product multiplies the chunk. The
+    result equals the in-memory one up to rounding (the products are grouped
+    differently), whatever the chunking.
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, quatarray as qa, quatarray.dask as qd
+    >>> q = qa.random(100, rng=2)
+    >>> np.allclose(qd.cumprod(da.from_array(q, chunks=(7, 4))).compute(), qa.cumprod(q), atol=1e-13)
+    True
+    """
+    x, ax = _scan_input(q, axis, "cumprod")
+    return _scan(x, ax, "cumprod", _cumprod_local, _cumprod_summary, _cumprod_carry, _cumprod_apply)
+
+
+def unflip(q, axis=0):
+    """Dask version of :func:`quatarray.unflip`: sign continuity along a leading axis.
+
+    A prefix scan: each chunk is unflipped on its own (in parallel), then one
+    sign per chunk is carried across the borders (the dot product of a
+    chunk's first row with the previous chunk's last row, already signed),
+    and chunks whose sign is −1 are negated up to the first row whose dot
+    product with the row before is 0 or nan (a zero or non-finite row, an
+    exact quarter turn: the in-memory scan keeps that row, and so the rest,
+    whatever came before). Equal to the in-memory result bitwise, whatever
+    the chunking.
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, quatarray as qa, quatarray.dask as qd
+    >>> q = qa.random(50, rng=3)
+    >>> np.array_equal(qd.unflip(da.from_array(q, chunks=(4, 4))).compute(), qa.unflip(q))
+    True
+    """
+    x, ax = _scan_input(q, axis, "unflip")
+    return _scan(x, ax, "unflip", _unflip_local, _unflip_summary, unflip_carry, _unflip_apply)
+
+
+# --------------------------------------------------------------------------
+# rows across block borders (integrate_angular_velocity here, spline and
+# angular_velocity in quatarray.dask.windows)
+
+
+def _concat_rows(parts):
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+def row_pieces(x, a, b, dsk, cut=None):
+    """Task expressions for rows [a, b) of `x` (chunked along axis 0 only), one per
+    block they fall in (whole blocks are the blocks' keys).
+
+    Rows taken from part of a block are cut by a small task of their own, added
+    to `dsk`: it runs where the block is kept, so only those rows travel to the
+    worker that needs them, not the whole block. Or `cut` gives the expression
+    for them: ``cut(i, (lo, hi))``, rows ``lo:hi`` of block `i` (None: a task of
+    their own after all).
+    """
+    starts = np.cumsum((0,) + x.chunks[0])
+    first = int(np.searchsorted(starts, a, side="right")) - 1
+    parts = []
+    for i in range(first, len(x.chunks[0])):
+        lo, hi = starts[i], starts[i + 1]
+        if lo >= b:
+            break
+        key = (x.name, i) + (0,) * (x.ndim - 1)
+        if a <= lo and hi <= b:
+            parts.append(key)
+            continue
+        rows = int(max(a, lo) - lo), int(min(b, hi) - lo)
+        expr = None if cut is None else cut(i, rows)
+        if expr is not None:
+            parts.append(expr)
+            continue
+        task = (f"rows-{x.name}", i) + rows
+        dsk[task] = (operator.getitem, key, slice(*rows))
+        parts.append(task)
+    return parts
+
+
+def row_window(x, a, b, dsk):
+    """A task expression for rows [a, b) of `x` as one array (see :func:`row_pieces`)."""
+    return (_concat_rows, row_pieces(x, a, b, dsk))
+
+
+# --------------------------------------------------------------------------
+# integrate_angular_velocity: each block from the identity, the orientation carried
+
+
+def _integrate_task(omega, times, frame, hold, index0):
+    # the block's rows and the first row of the next block: local orientations from
+    # the identity, through the step that crosses into the next block
+    from ..kinematics import integrate_angular_velocity
+
+    with _serial():
+        return integrate_angular_velocity(omega, times, frame=frame, hold=hold, _index0=index0)
+
+
+def _integrate_carries(q0, body, *locals_):
+    """The orientation where each block starts: q0, then each block's local end
+    (its row past the block) applied in turn."""
+    from ..algebra import multiply
+
+    carries = [q0]
+    with _serial():
+        for local in locals_[:-1]:
+            end, c = local[-1], carries[-1]
+            carries.append(multiply(c, end) if body else multiply(end, c))
+    return carries
+
+
+def _integrate_apply(local, carries, j, size, body):
+    from ..algebra import multiply
+
+    c = carries[j]
+    with _serial():
+        return multiply(c, local[:size]) if body else multiply(local[:size], c)
+
+
+def integrate_angular_velocity(omega, times, q0=None, frame="space", hold="mean"):
+    """Dask version of :func:`quatarray.integrate_angular_velocity`: ``(N, 4)``, a blocked scan.
+
+    Each block is integrated from the identity on its rows plus the first row
+    of the next block (the step across the border: ``hold="mean"`` needs the
+    next rate), in parallel; one task carries the orientation from block to
+    block (q0, then each block's end applied in turn); each block is then
+    multiplied by the orientation where it starts. The steps are taken in the
+    times' own type, so int64 nanoseconds stay exact. Equal to the in-memory
+    result to rounding (about 1e-13: the products are grouped differently),
+    whatever the chunking. `times` may be a Dask array (rechunked like
+    `omega`) or a numpy array.
+
+    Examples
+    --------
+    >>> import dask.array as da, numpy as np, quatarray as qa, quatarray.dask as qd
+    >>> t = np.linspace(0, 1, 50)
+    >>> w = np.tile([0, 0, 2.0], (50, 1))  # 2 rad/s about z
+    >>> q = qd.integrate_angular_velocity(da.from_array(w, chunks=(8, 3)), t).compute()
+    >>> np.allclose(q, qa.from_rotvec(np.outer(t, [0, 0, 2.0])))
+    True
+    """
+    from ..kinematics import _check_options
+
+    _check_options(frame, hold)
+    x = as_dask(omega, "omega", V)
+    if x.ndim != 2:
+        raise ValueError(f"Expected `omega` to have shape (N, 3), got {tuple(x.shape)}.")
+    dtype = as_float(np.empty(0, x.dtype), "omega").dtype
+    if x.dtype != dtype:
+        x = x.astype(dtype)
+    if q0 is None:
+        start = np.array([1.0, 0.0, 0.0, 0.0], dtype)
+    else:
+        start = check_core(as_float(q0, "q0"), "q0", Q)
+        if start.ndim != 1:
+            raise ValueError(f"Expected `q0` to have shape (4,), got {start.shape}.")
+        dtype = result_dtype([np.empty(0, dtype), start])
+    tt = times if isinstance(times, da.Array) else da.from_array(np.asarray(times))
+    if tt.ndim != 1 or tt.shape[0] != x.shape[0]:
+        raise ValueError(f"Expected `times` to have shape ({x.shape[0]},) like `omega`, got {tuple(tt.shape)}.")
+    if tt.dtype.kind not in "iuf":
+        raise TypeError(f"Expected `times` to have a real (float or integer) dtype, got {tt.dtype}.")
+    tt = tt.rechunk((x.chunks[0],))
+    n = x.shape[0]
+    body = frame == "body"
+    token = tokenize("integrate_angular_velocity", x, tt, start, frame, hold)
+    lname, cname, name = (f"integrate-{p}-{token}" for p in ("local", "carry", "out"))
+    dsk, locals_, a = {}, [], 0
+    for j, size in enumerate(x.chunks[0]):
+        b = a + size
+        w1 = min(n, b + 1)
+        if w1 > a:
+            dsk[(lname, j)] = (_integrate_task, row_window(x, a, w1, dsk), row_window(tt, a, w1, dsk), frame, hold, a)
+        else:  # an empty last block
+            dsk[(lname, j)] = np.zeros((0, 4), dtype)
+        locals_.append((lname, j))
+        a = b
+    dsk[cname] = (_integrate_carries, start, body) + tuple(locals_)
+    for j, size in enumerate(x.chunks[0]):
+        dsk[(name, j, 0)] = (_integrate_apply, (lname, j), cname, j, size, body)
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[x, tt])
+    return da.Array(graph, name, chunks=(x.chunks[0], (4,)), meta=np.empty((0, 0), dtype))
+
+
+__all__ = ["as_dask", "cumprod", "unflip", "integrate_angular_velocity", *ELEMENTWISE]
