@@ -32,10 +32,9 @@ from . import _elements as E
 from . import _jit
 from ._jit import inline, kernel, like, prange, specialise
 from ._trig import sincos_limit
-from ._validate import as_float, as_times, check_core, result_dtype
+from ._validate import as_float, as_times, check_core, check_times, first_not_increasing, not_increasing, result_dtype
 from .algebra import multiply as qa_multiply
 from .conversions import half_sinc, rotvec_quat
-from .interpolation import _check_times, _first_not_increasing, _not_increasing
 
 FRAMES = ("space", "body")
 HOLDS = ("mean", "start")
@@ -221,10 +220,10 @@ def _steps(times, n, index0=0):
     int64 nanoseconds), or the ValueError naming the first time that is not larger than
     the one before (its index counted from `index0`)."""
     t = as_times(times, "times")
-    _check_times(t, n, "times")
-    i = _first_not_increasing(t)
+    check_times(t, n, "times")
+    i = first_not_increasing(t)
     if i is not None:
-        raise _not_increasing("times", index0 + i, t[i], t[i + 1])
+        raise not_increasing("times", index0 + i, t[i], t[i + 1])
     return np.diff(t).astype(np.float64)
 
 

@@ -16,10 +16,9 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import prange, rowloop
-from ._streams import spline_streams
-from ._validate import as_times
+from ._validate import as_times, key_times
 from .algebra import normalize
-from .interpolation import _SPLINE, _plan_times, _times
+from .splines import check_method, plan_times, resample_streams
 
 AXES = "XYZ"
 
@@ -194,8 +193,7 @@ class Clip:
         """
         if (rate is None) == (times is None):
             raise ValueError("Expected exactly one of `rate` and `times`.")
-        if method not in _SPLINE:
-            raise ValueError(f"Expected `method` to be one of {sorted(_SPLINE)}, got {method!r}.")
+        check_method(method)
         t = self.times
         if rate is not None:
             rate = float(rate)
@@ -212,14 +210,14 @@ class Clip:
         if cols and t.size < 2:
             raise ValueError(f"Expected at least 2 frames to resample a clip, got {t.size}.")
         # the time plan once for every joint (spline's checks and conversion)
-        t, nt = _plan_times(_times(t, t.size), nt) if cols else (t, np.asarray(nt, np.float64))
+        t, nt = plan_times(key_times(t, t.size), nt) if cols else (t, np.asarray(nt, np.float64))
         nt = np.ascontiguousarray(nt)
         rot = np.empty((nt.size, J, 4))
         for j in range(J):
             if not self.orders[j]:  # no rotation channels: the clip's constant rotation (the identity)
                 rot[:, j] = normalize(self.rotations[0, j])
         if cols:  # every joint as spline(t, rotations[:, j], nt, method), in one pass
-            spline_streams(t, nt, self.rotations, cols, method, rot)
+            resample_streams(t, nt, self.rotations, cols, method, rot)
         trans = np.empty((nt.size, J, 3))
         trans[:] = self.offsets
         pj = self.positional()
