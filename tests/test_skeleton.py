@@ -270,24 +270,6 @@ def test_resample_equals_spline_per_joint_bitwise(six, rng, method):
                 assert np.array_equal(r.rotations[:, j], np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4)))
 
 
-def test_resample_streams_float32_and_lane_groups(rng):
-    """The multi-stream engine on more streams than one lane group, float32 kept, equal
-    to spline stream by stream; the columns it does not own are left alone."""
-    from quatarray.splines import LANES, resample_streams
-
-    k, j = 30, LANES + 3
-    t = np.cumsum(rng.uniform(0.5, 1.5, k))
-    keys = (qa.from_rotvec(np.cumsum(rng.normal(0, 0.4, (k, j, 3)), axis=0)) * 1.01).astype(np.float32)
-    keys[1::4] *= -1
-    nt = np.linspace(t[0], t[-1], 101)
-    for method in ("bezier", "slerp", "nlerp", "squad"):
-        out = np.full((nt.size, j + 1, 4), 7, np.float32)
-        resample_streams(t, nt, np.concatenate([keys, keys[:, :1]], axis=1), np.arange(j), method, out)
-        ref = np.stack([qa.spline(t, keys[:, i], nt, method=method) for i in range(j)], axis=1)
-        assert ref.dtype == np.float32 and np.array_equal(out[:, :j], ref), method
-        assert (out[:, j] == 7).all()
-
-
 def test_resample_needs_rate_or_times(six):
     clip = io.read_bvh(six)
     with pytest.raises(ValueError):
