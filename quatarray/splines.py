@@ -704,14 +704,17 @@ def lane_arc(arcs, c, l):
             load1(arcs, (c + 3) * LANES + l), load1(arcs, (c + 4) * LANES + l))
 
 
+@inline
+def lane_keys(keys, l):
+    """Lane l of a segment's small table: q_n, c_out[n], c_in[n+1], q_{n+1}."""
+    return load_lane(keys, 0, l), load_lane(keys, G4, l), load_lane(keys, 2 * G4, l), load_lane(keys, 3 * G4, l)
+
+
 def _lane_arcs(keys, count, arcs):
     """The fixed arcs of one segment for lanes 0 … count − 1: `keys` (16 LANES,) holds
     q_n, c_out[n], c_in[n+1], q_{n+1} of a group; `arcs` (15 LANES,) gets up to three (θ, v)."""
     for l in range(count):
-        p = load_lane(keys, 0, l)
-        a = load_lane(keys, G4, l)
-        b = load_lane(keys, 2 * G4, l)
-        r = load_lane(keys, 3 * G4, l)
+        p, a, b, r = lane_keys(keys, l)
         if KIND == 1:
             put_lane_arc(arcs, 0, l, p, a)
             put_lane_arc(arcs, 5, l, a, b)
@@ -726,10 +729,7 @@ def _lane_arcs(keys, count, arcs):
 def _lane_eval(keys, arcs, t, count, res):
     """One sample at segment parameter t for lanes 0 … count − 1 (SIMD over lanes) into `res` (4 LANES,)."""
     for l in range(count):
-        p = load_lane(keys, 0, l)
-        a = load_lane(keys, G4, l)
-        b = load_lane(keys, 2 * G4, l)
-        r = load_lane(keys, 3 * G4, l)
+        p, a, b, r = lane_keys(keys, l)
         if KIND == 1:
             v = bezier_seg(p, a, b, r, lane_arc(arcs, 0, l), lane_arc(arcs, 5, l), lane_arc(arcs, 10, l), t)
         elif KIND == 2:
