@@ -119,11 +119,8 @@ def _scan(out, q0, body, unit):
     m = n // CHAINS if n >= 4 * CHAINS else 0  # short scans: one chain
     one = (1.0, 0.0, 0.0, 0.0)
     a0 = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
-    a1 = a2 = a3 = one
-    if m == 0:
-        for k in range(n):
-            a0 = scan_step(out, k, a0, body, unit)
-        return
+    a1 = a2 = one
+    a3 = a0 if m == 0 else one  # a short scan is the last part's loop alone, from q0
     for k in range(m):
         a0 = scan_step(out, k, a0, body, unit)
         a1 = scan_step(out, m + k, a1, body, unit)
@@ -131,6 +128,8 @@ def _scan(out, q0, body, unit):
         a3 = scan_step(out, 3 * m + k, a3, body, unit)
     for k in range(4 * m, n):
         a3 = scan_step(out, k, a3, body, unit)
+    if m == 0:
+        return
     carry = a0  # the end of the part before, in float64
     last = a0
     for c in range(1, CHAINS):
