@@ -793,8 +793,9 @@ def _lane_spline(times, new_t, q, c_out, c_in, cols, nj, out):
             j = e
 
 
+# multi-threaded by the size of `out` (4 per joint-sample): a sample costs one evaluation per stream
 _LANE_SPLINE = {
-    name: rowloop(rows=1)(specialise(_lane_spline, f"_{name}",
+    name: rowloop(rows=7)(specialise(_lane_spline, f"_{name}",
                                      lane_arcs=kernel(specialise(_lane_arcs, f"_{name}", KIND=m.kind)),
                                      lane_eval=kernel(specialise(_lane_eval, f"_{name}", KIND=m.kind))))
     for name, m in _METHODS.items()
