@@ -255,7 +255,8 @@ def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
                     bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
                     bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
                 )  # fmt: skip
-                ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2] + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
+                ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2]
+                             + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
                 wsum += wi
             nan = np.nan
             flag = 0

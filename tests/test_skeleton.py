@@ -267,7 +267,8 @@ def test_resample_equals_spline_per_joint_bitwise(six, rng, method):
                 ref = qa.spline(c.times, c.rotations[:, j], r.times, method=method)
                 assert np.array_equal(r.rotations[:, j], ref), (method, c.joints[j])
             else:
-                assert np.array_equal(r.rotations[:, j], np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4)))
+                const = np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4))
+                assert np.array_equal(r.rotations[:, j], const)
 
 
 def test_resample_needs_rate_or_times(six):
