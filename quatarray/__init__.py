@@ -20,10 +20,11 @@ _MODULES = {
     ],
     "rotation": ["rotate"],
     "conversions": [
-        "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle",
-        "from_axis_angle", "as_xyzw", "from_xyzw", "to_scipy", "from_scipy",
-        "as_left_matrix", "as_right_matrix", "as_su2", "from_su2",
-        "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
+        "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle", "from_axis_angle",
+    ],
+    "representations": [
+        "as_xyzw", "from_xyzw", "to_scipy", "from_scipy", "as_left_matrix", "as_right_matrix",
+        "as_su2", "from_su2", "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
     ],
     "euler": ["as_euler", "from_euler"],
     "interpolation": [

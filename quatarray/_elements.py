@@ -15,7 +15,7 @@ from numba import types
 from numba.extending import overload
 
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
-from ._jit import CACHE, element, exponent_scales, inline, like
+from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like, prange, RowLoop, rowloop, specialise
 from ._trig import atan2
 
 
@@ -80,7 +80,8 @@ def qnorm(q):
 # loss (|q| between about 5e-76 and 2e75 in float64, 1e-9 and 1e9 in float32).
 # Batched loops compute the plain formulas and `far_scale` of |q|²; the rare
 # rows outside (and zero, inf, nan ones) are redone on ``qscaled(q)`` in a
-# second pass, so the common case costs what it did before scaling existed.
+# second pass, so the common case costs what it did before scaling existed
+# (the loops: :class:`FarRows`).
 NEAR_64 = (2.0**-500, 2.0**500)
 NEAR_32 = (2.0**-60, 2.0**60)
 
@@ -108,6 +109,97 @@ def flags_max(flags, m):
     for j in range(m):
         f = max(f, flags[j])
     return f
+
+
+def _far_rows(*args):
+    # the first pass of FarRows: each copy rebinds _PLAIN
+    n = args[0].shape[0]
+    far = np.int32(0)
+    for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
+        lo = b * FLAG_BLOCK
+        m = min(n - lo, FLAG_BLOCK)
+        flags = np.empty(FLAG_BLOCK, np.int32)
+        for j in range(m):
+            flags[j] = _PLAIN(lo + j, args)
+        far = max(far, flags_max(flags, m))
+    return far
+
+
+def _far_rows_again(*args):
+    # the second pass of FarRows: each copy rebinds _SCALED
+    for i in range(args[0].shape[0]):
+        _SCALED(i, args)
+
+
+def _redo(i, args):
+    # the scaled pass of redo(): each copy rebinds _STORE and _FORMULA
+    a = load4(args[0], i)
+    if far_scale(qdot(a, a)):
+        _STORE(args[-1], i, _FORMULA(a))
+
+
+def redo(store, formula, name):
+    """The ``scaled`` function of a :class:`FarRows` kernel whose first argument
+    is the quaternions q, whose last is the output, and whose far rows are
+    those of |q|²: ``store(out, i, formula(q_i))`` on those rows (`formula`
+    being the any-scale one, e.g. :func:`qinverse`)."""
+    return inline(specialise(_redo, "_" + name, home=formula, _STORE=store, _FORMULA=formula))
+
+
+class FarRows:
+    """The batched loop of a formula that is exact only near unit scale, over
+    the rows of its first argument; called like a :class:`quatarray._jit.RowLoop`.
+
+    ``plain(i, args)`` computes row i of the arrays ``args`` (the kernel's
+    arguments, as one tuple) on the inputs as they are, stores it, and returns
+    the row's :func:`far_scale` flag (an ``int32``, 1 where that is not exact:
+    far from unit scale, or 0, inf, nan). It should be an :func:`inline`
+    function, so that the loop vectorises as if written out. The loop keeps the
+    flags per block of :data:`FLAG_BLOCK` rows (:func:`flags_max`) and returns
+    whether one was set; only then a second, serial kernel calls
+    ``scaled(i, args)`` on every row, which redoes the row if it is flagged (on
+    the scaled input, say: :func:`qscaled`) and else leaves it. The common case
+    costs what the plain formula costs, and the second pass and the scaled
+    formulas compile only on the first input that needs them. Where an output
+    may be an input, ``plain`` leaves flagged rows holding that input, for
+    ``scaled`` to read. A call returns 1 when the second pass ran, else 0.
+
+    `name` names the compiled copies (their cache files, kept beside
+    `plain`'s module); ``parallel=False`` keeps the first pass serial.
+
+    Examples
+    --------
+    ``_norm = FarRows(_norm_plain, _norm_scaled, "norm")`` with::
+
+        @inline
+        def _norm_plain(i, args):
+            q, out = args
+            a = load4(q, i)
+            n2 = qdot(a, a)
+            out[i] = np.sqrt(n2)
+            return far_scale(n2)
+
+        @inline
+        def _norm_scaled(i, args):
+            q, out = args
+            a = load4(q, i)
+            if far_scale(qdot(a, a)):
+                out[i] = qnorm(a)
+    """
+
+    # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
+    # keeps LLVM from vectorising the loop, and so does numba-IR inlining of plain.)
+
+    def __init__(self, plain, scaled, name, parallel=True):
+        self.first = rowloop(specialise(_far_rows, "_" + name, home=plain, _PLAIN=plain), parallel=parallel)
+        self.again = RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
+        self.__name__ = "_" + name
+
+    def __call__(self, *args):
+        far = self.first(*args)
+        if far:
+            self.again(*args)
+        return far
 
 
 @overload(far_scale, jit_options={"cache": CACHE})

@@ -13,7 +13,9 @@ QUATARRAY_NO_CACHE
 QUATARRAY_PARALLEL_MIN_ROWS
     Batches with at least this many rows run the multi-threaded variant of
     a row loop (default 200000, chosen from ``benchmarks/``). ``0`` means
-    always, a huge value never.
+    always, a huge value never. Inside ``with serial():`` (or
+    ``variant("serial")``) the calls of that thread or task run serial
+    whatever their size; other threads keep the rule.
 
 Kernel layers
 -------------
@@ -52,7 +54,10 @@ Kernel layers
     it load and store whole SIMD registers (float32 gains the most).
 """
 
+import contextlib
+import contextvars
 import os
+import sys
 import threading
 import types as _pytypes
 
@@ -124,8 +129,8 @@ class RowLoop:
     """A batched kernel with a serial and a parallel variant.
 
     ``rows`` is the index of the argument whose first axis is the loop
-    length; calls with fewer than ``PARALLEL_MIN_ROWS`` rows use the
-    serial variant.
+    length; calls with fewer than :func:`min_rows` rows (``PARALLEL_MIN_ROWS``
+    unless a :func:`variant` is asked for) use the serial variant.
 
     numba's ``workqueue`` threading layer (the one left when neither TBB nor
     OpenMP is installed) cannot run two parallel kernels at once: it aborts
@@ -153,7 +158,7 @@ class RowLoop:
         self.__name__ = fn.__name__
 
     def __call__(self, *args):
-        if args[self.rows].shape[0] < PARALLEL_MIN_ROWS or self.parallel is self.serial:
+        if args[self.rows].shape[0] < min_rows() or self.parallel is self.serial:
             return self.serial(*args)
         if _SAFE_LAYER:
             return self.parallel(*args)
@@ -164,6 +169,49 @@ class RowLoop:
         finally:
             _check_layer()
             _PARALLEL.release()
+
+
+# The variant this thread or task asks for: None (by size), "serial" or "parallel".
+# A context variable, so that a task going serial leaves other threads alone.
+_VARIANT = contextvars.ContextVar("quatarray_variant", default=None)
+
+
+def min_rows():
+    """The number of rows from which a row loop runs parallel here and now:
+    :data:`PARALLEL_MIN_ROWS`, or never inside :func:`serial`, or always inside
+    ``variant("parallel")``."""
+    v = _VARIANT.get()
+    if v is None:
+        return PARALLEL_MIN_ROWS
+    return sys.maxsize if v == "serial" else 0
+
+
+@contextlib.contextmanager
+def variant(name):
+    """Run the row loops called in this thread (or asyncio task) as `name`:
+    ``"serial"``, ``"parallel"`` (whatever the size: for compiling both) or
+    ``None`` (by size, the default). Nests; other threads are not affected.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray import _jit, algebra
+    >>> with _jit.variant("serial"):
+    ...     n = algebra.normalize(np.ones((3, 4)))
+    """
+    if name not in (None, "serial", "parallel"):
+        raise ValueError(f"Expected `name` to be None, 'serial' or 'parallel', got {name!r}.")
+    token = _VARIANT.set(name)
+    try:
+        yield
+    finally:
+        _VARIANT.reset(token)
+
+
+def serial():
+    """``variant("serial")``: the row loops called in this thread run on it
+    alone (inside Dask tasks, where the scheduler is the parallel layer)."""
+    return variant("serial")
 
 
 # One parallel kernel at a time until the threading layer is known to be safe
@@ -187,16 +235,25 @@ def rowloop(fn=None, *, rows=0, parallel=True):
     return RowLoop(fn, rows=rows, parallel=parallel)
 
 
-def specialise(fn, suffix, **names):
+def specialise(fn, suffix, home=None, **names):
     """A copy of the plain function `fn` with the global `names` rebound (another
     kernel to call, say), named ``fn.__name__ + suffix``: its own qualname gives it
     its own cache file, and each copy compiles only what it calls. The copy sees a
-    snapshot of the module's globals taken now."""
+    snapshot of the module's globals taken now.
+
+    `home`, a function, makes the copy belong to home's module and source file:
+    numba then keeps its cache beside home's and drops it when that file changes
+    (numba checks only the file of the function it compiles, and the copy's
+    behaviour lives in the functions rebound from there)."""
     scope = dict(fn.__globals__)
     scope.update(names)
-    copy = _pytypes.FunctionType(fn.__code__, scope, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
+    code = fn.__code__
+    if home is not None:
+        home = getattr(home, "py_func", home)  # a dispatcher's Python function
+        code = code.replace(co_filename=home.__code__.co_filename)
+    copy = _pytypes.FunctionType(code, scope, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
     copy.__qualname__ = fn.__qualname__ + suffix
-    copy.__module__ = fn.__module__
+    copy.__module__ = fn.__module__ if home is None else home.__module__
     copy.__doc__ = fn.__doc__
     return copy
 

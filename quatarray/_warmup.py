@@ -54,6 +54,9 @@ def _samples(dtype, n=8, k=6):
         return (a / np.linalg.norm(a, axis=1, keepdims=True)).astype(d)
 
     p, q = unit(n), unit(n)
+    big = 1e200 if d == np.float64 else 1e30
+    far = p.copy()  # a row far from unit scale: the second pass of E.FarRows kernels
+    far[1] *= big
     w, x, y, z = p.T.astype(np.float64)
     m = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -70,7 +73,8 @@ def _samples(dtype, n=8, k=6):
         s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), rv=rng.standard_normal((n, 3)).astype(d),
         axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
         eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
-        keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t),
+        keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t), far=far,
+        far_m=np.concatenate([m[:1] * big, m[1:]]).astype(d),
     )
 
 
@@ -121,6 +125,7 @@ def _vqm(qa, s):
 def _transform(t, other, s):
     """Every method of the transforms `t` (VQS or VQM), composed also with `other`."""
     _each(t.apply, s.v, out=True)
+    _each(type(t)(t.v, s.far, getattr(t, t._field)).apply, s.v, out=True)  # far rows of q
     t[0].apply(s.v)
     t @ t, t[0] @ t, t @ other, other @ t, t.inverse(), t.as_matrix()
     type(t).from_matrix(t.as_matrix())
@@ -154,29 +159,32 @@ TABLE = {
     # algebra
     "multiply": _f("multiply", lambda f, s: _each(f, s.p, s.q, out=True)),
     "conjugate": _f("conjugate", lambda f, s: _each(f, s.p, out=True)),
-    "inverse": _f("inverse", lambda f, s: _each(f, s.p, out=True)),
-    "norm": _f("norm", lambda f, s: _each(f, s.p)),
-    "normalize": _f("normalize", lambda f, s: _each(f, s.p, out=True)),
+    "inverse": _f("inverse", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
+    "norm": _f("norm", lambda f, s: (_each(f, s.p), _each(f, s.far))),
+    "normalize": _f("normalize", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "dot": _f("dot", lambda f, s: _each(f, s.p, s.q)),
     "exp": _f("exp", lambda f, s: _each(f, s.p, out=True)),
-    "log": _f("log", lambda f, s: _each(f, s.p, out=True)),
+    "log": _f("log", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "power": _f("power", lambda f, s: (_each(f, s.p, s.t, out=True), f(s.p, 0.5))),
     "cumprod": _f("cumprod", lambda f, s: (_each(f, s.p), f(s.p.reshape(2, -1, 4), axis=1))),
     "identity": _f("identity", lambda f, s: f(3, dtype=s.dtype)),
     "random": _f("random", lambda f, s: f(3, rng=0, dtype=s.dtype)),
     "canonical": _f("canonical", lambda f, s: _each(f, s.p, out=True)),
-    "angle": _f("angle", lambda f, s: _each(f, s.p)),
-    "distance": _f("distance", lambda f, s: _each(f, s.p, s.q)),
+    "angle": _f("angle", lambda f, s: (_each(f, s.p), _each(f, s.far))),
+    "distance": _f("distance", lambda f, s: (_each(f, s.p, s.q), _each(f, s.far, s.q))),
     "mean": _f("mean", lambda f, s: (_each(f, s.p), f(s.p, weights=s.s))),
     # rotation
-    "rotate": _f("rotate", lambda f, s: _each(f, s.p, s.v, out=True)),
+    "rotate": _f("rotate", lambda f, s: (_each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True))),
     # conversions
-    "as_matrix": _f("as_matrix", lambda f, s: _each(f, s.p, out=True)),
+    "as_matrix": _f("as_matrix", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_matrix": _f("from_matrix", lambda f, s: (
-        _each(f, s.m, out=True), _each(f, s.m, assume_valid=True, out=True), f(2 * s.m))),
-    "as_rotvec": _f("as_rotvec", lambda f, s: (_each(f, s.p, out=True), f(s.p, degrees=True))),
-    "from_rotvec": _f("from_rotvec", lambda f, s: (_each(f, s.rv, out=True), f(s.rv, degrees=True))),
-    "as_axis_angle": _f("as_axis_angle", lambda f, s: (_each(f, s.p), f(s.p, degrees=True))),
+        _each(f, s.m, out=True), _each(f, s.m, assume_valid=True, out=True), f(2 * s.m),
+        _each(f, s.far_m, assume_valid=True, out=True))),
+    "as_rotvec": _f("as_rotvec", lambda f, s: (
+        _each(f, s.p, out=True), f(s.p, degrees=True), _each(f, s.far, out=True))),
+    "from_rotvec": _f("from_rotvec", lambda f, s: (
+        _each(f, s.rv, out=True), f(s.rv, degrees=True), _each(f, 1e7 * s.rv, out=True))),
+    "as_axis_angle": _f("as_axis_angle", lambda f, s: (_each(f, s.p), f(s.p, degrees=True), _each(f, s.far))),
     "from_axis_angle": _f("from_axis_angle", lambda f, s: (
         _each(f, s.axis, s.ang, out=True), f(s.axis, 0.5), f(s.axis, s.ang, degrees=True))),
     "as_xyzw": _f("as_xyzw", lambda f, s: _each(f, s.p, out=True)),
@@ -189,10 +197,10 @@ TABLE = {
     "from_su2": _f("from_su2", lambda f, s: _each(f, s.su2, out=True)),
     # Euler angles (proper and Tait-Bryan, extrinsic and intrinsic; far angles take a second kernel)
     "as_euler": _f("as_euler", lambda f, s: [
-        (_each(f, s.p, seq), f(s.p, seq, degrees=True)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
+        (_each(f, s.p, seq), f(s.p, seq, degrees=True), _each(f, s.far, seq)) for seq in ("xyz", "ZYX", "zxz", "XZX")]),
     "from_euler": _f("from_euler", lambda f, s: [
         (_each(f, seq, s.eul), f(seq, s.eul, degrees=True), f(seq, 1e7 * s.eul)) for seq in ("xyz", "ZXZ")]),
-    "as_mrp": _f("as_mrp", lambda f, s: _each(f, s.p, out=True)),
+    "as_mrp": _f("as_mrp", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_mrp": _f("from_mrp", lambda f, s: _each(f, s.rv, out=True)),
     "as_gibbs": _f("as_gibbs", lambda f, s: _each(f, s.p, out=True)),
     "from_gibbs": _f("from_gibbs", lambda f, s: _each(f, s.rv, out=True)),
@@ -265,18 +273,14 @@ def _run_job(qa, jit, name, dtype, variant, samples):
     message or "")."""
     from numba.core import event
 
-    saved = jit.PARALLEL_MIN_ROWS
-    jit.PARALLEL_MIN_ROWS = 0 if variant == "parallel" else sys.maxsize
     rec = event.RecordingListener()
     error = ""
     t0 = time.perf_counter()
     try:
-        with event.install_listener("numba:compile", rec):
+        with event.install_listener("numba:compile", rec), jit.variant(variant if variant == "parallel" else "serial"):
             TABLE[name](qa, samples[dtype])
     except Exception as exc:  # noqa: BLE001 - a kernel that does not compile is reported, the rest goes on
         error = f"{type(exc).__name__}: {str(exc).splitlines()[-1] if str(exc) else ''}"[:300]
-    finally:
-        jit.PARALLEL_MIN_ROWS = saved
     seconds = time.perf_counter() - t0
     return seconds, sum(1 for _, ev in rec.buffer if ev.is_start), error
 

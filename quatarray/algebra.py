@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import kernel, like, prange, rowloop
+from ._jit import inline, kernel, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
@@ -31,80 +31,56 @@ def _conjugate(q, out):
         E.store4(out, i, E.qconj(E.load4(q, i)))
 
 
-# The loops over |q|-dependent formulas compute them on q as it is and note
-# (E.far_scale, flags per block of rows: E.flags_max) whether a row
-# lies outside the range where that is exact; only then a second, serial pass
-# redoes those rows on the scaled q (E.qscaled). Where `out` may be the input,
-# the first pass leaves such rows as they were, for the second to read.
+# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# a second kernel redoes the rare rows outside the range where that is exact,
+# on the scaled q (E.qscaled), only when there are some.
 
 
-@rowloop
-def _inverse(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            n2 = E.qdot(a, a)
-            f = E.far_scale(n2)
-            E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
-            flags[j] = f
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                E.store4(out, i, E.qinverse(a))
+@inline
+def _inverse_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    n2 = E.qdot(a, a)
+    f = E.far_scale(n2)
+    E.store4(out, i, E.pick4(f, a, (a[0] / n2, -a[1] / n2, -a[2] / n2, -a[3] / n2)))
+    return f
 
 
-@rowloop
-def _normalize(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            n2 = E.qdot(a, a)
-            f = E.far_scale(n2)
-            nn = np.sqrt(n2)
-            E.store4(out, i, E.pick4(f, a, (a[0] / nn, a[1] / nn, a[2] / nn, a[3] / nn)))
-            flags[j] = f
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                E.store4(out, i, E.qnormalize(a))
+_inverse = E.FarRows(_inverse_plain, E.redo(E.store4, E.qinverse, "inverse"), "inverse")
 
 
-@rowloop
-def _norm(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            n2 = E.qdot(a, a)
-            out[i] = np.sqrt(n2)
-            flags[j] = E.far_scale(n2)
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                out[i] = E.qnorm(a)
+@inline
+def _normalize_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    n2 = E.qdot(a, a)
+    f = E.far_scale(n2)
+    nn = np.sqrt(n2)
+    E.store4(out, i, E.pick4(f, a, (a[0] / nn, a[1] / nn, a[2] / nn, a[3] / nn)))
+    return f
+
+
+_normalize = E.FarRows(_normalize_plain, E.redo(E.store4, E.qnormalize, "normalize"), "normalize")
+
+
+@inline
+def _norm_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    n2 = E.qdot(a, a)
+    out[i] = np.sqrt(n2)
+    return E.far_scale(n2)
+
+
+@inline
+def _norm_scaled(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    if E.far_scale(E.qdot(a, a)):
+        out[i] = E.qnorm(a)
+
+
+_norm = E.FarRows(_norm_plain, _norm_scaled, "norm")
 
 
 @rowloop
@@ -119,26 +95,16 @@ def _exp(q, out):
         E.store4(out, i, E.qexp(E.load4(q, i)))
 
 
-@rowloop
-def _log(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            f = E.far_scale(E.qdot(a, a))
-            E.store4(out, i, E.pick4(f, a, E.qlog_raw(a)))
-            flags[j] = f
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                E.store4(out, i, E.qlog(a))
+@inline
+def _log_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    f = E.far_scale(E.qdot(a, a))
+    E.store4(out, i, E.pick4(f, a, E.qlog_raw(a)))
+    return f
+
+
+_log = E.FarRows(_log_plain, E.redo(E.store4, E.qlog, "log"), "log")
 
 
 @rowloop
@@ -158,48 +124,47 @@ def _canonical(q, out):
         E.store4(out, i, E.qneg(a) if E.canonical_flip(a) else a)
 
 
-@rowloop
-def _angle(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            out[i] = like(out, 2.0) * E.half_angle_raw(a)
-            flags[j] = E.far_scale(E.qdot(a, a))
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                out[i] = like(out, 2.0) * E.half_angle(E.qscaled(a)[0])
+@inline
+def _angle_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    out[i] = like(out, 2.0) * E.half_angle_raw(a)
+    return E.far_scale(E.qdot(a, a))
 
 
-@rowloop
-def _distance(p, q, out):
-    # far: |p⁻¹q|² = |p|²|q|² outside the range (its product's squares could over- or underflow)
-    n = p.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
-            out[i] = like(out, 2.0) * E.half_angle_raw(d)
-            flags[j] = E.far_scale(E.qdot(d, d))
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(p.shape[0]):
-            a, b = E.load4(p, i), E.load4(q, i)
-            d = E.qmul(E.qconj(a), b)
-            if E.far_scale(E.qdot(d, d)):
-                out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.qscaled(a)[0]), E.qscaled(b)[0]))
+@inline
+def _angle_scaled(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    if E.far_scale(E.qdot(a, a)):
+        out[i] = like(out, 2.0) * E.half_angle(E.qscaled(a)[0])
+
+
+_angle = E.FarRows(_angle_plain, _angle_scaled, "angle")
+
+
+# distance's far rows: |p⁻¹q|² = |p|²|q|² outside the range (the squares of the
+# product's components could over- or underflow)
+
+
+@inline
+def _distance_plain(i, args):
+    p, q, out = args
+    d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
+    out[i] = like(out, 2.0) * E.half_angle_raw(d)
+    return E.far_scale(E.qdot(d, d))
+
+
+@inline
+def _distance_scaled(i, args):
+    p, q, out = args
+    a, b = E.load4(p, i), E.load4(q, i)
+    d = E.qmul(E.qconj(a), b)
+    if E.far_scale(E.qdot(d, d)):
+        out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.qscaled(a)[0]), E.qscaled(b)[0]))
+
+
+_distance = E.FarRows(_distance_plain, _distance_scaled, "distance")
 
 
 @kernel

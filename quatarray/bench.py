@@ -341,6 +341,14 @@ def cases(n, seed=0):
         c.add("numpy-quaternion", lambda: npq.from_rotation_vector(rv))
     if qn is not None:
         c.add("quaternionic", lambda: qn.array.from_rotation_vector(rv))
+
+    # modified Rodrigues parameters (scipy's Rotation built outside the timing)
+    mrp = rp.as_mrp()
+    c = case("as_mrp", nbytes=56, qa_name="as_mrp", qa_fn=lambda f: lambda: f(p))
+    c.add("scipy", lambda: rp.as_mrp())
+
+    c = case("from_mrp", nbytes=56, qa_name="from_mrp", qa_fn=lambda f: lambda: f(mrp))
+    c.add("scipy", lambda: Rotation.from_mrp(mrp))
     return out
 
 

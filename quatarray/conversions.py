@@ -1,16 +1,15 @@
-"""Conversions between quaternions (w, x, y, z) and other rotation representations.
-
-Rotation matrices, rotation vectors, axis–angle pairs, the scalar-last
-(x, y, z, w) layout, ``scipy.spatial.transform.Rotation`` objects, the 4×4
-left/right multiplication matrices and 2×2 complex (SU(2)) matrices.
+"""Conversions between quaternions (w, x, y, z) and rotation matrices,
+rotation vectors and axis–angle pairs.
 
 Every conversion from a quaternion accepts any non-zero scale (the rotation
 of q/|q| is meant); a zero quaternion gives nan. Leading dimensions
 broadcast like numpy; float32 stays float32 and float64 stays float64.
-Euler angles live in :mod:`quatarray.euler`.
+Euler angles live in :mod:`quatarray.euler`; the scalar-last layout, scipy
+``Rotation`` objects, the 4×4 multiplication matrices, SU(2), modified
+Rodrigues parameters and Gibbs vectors in :mod:`quatarray.representations`.
 
 The element functions of the rotation-vector and axis-angle kernels are
-inlined at numba-IR level (``_jit.inline``) and use the branch-free
+inlined by LLVM (``_jit.inline``) and use the branch-free
 polynomial sine, cosine and arctangent of :mod:`quatarray._trig`, so their
 row loops compile to SIMD code (about 3× faster than with libm calls).
 """
@@ -23,24 +22,17 @@ from . import _elements as E
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33, load33, store33
 from ._trig import half_arc, sincos, sincos_limit
-from ._validate import as_float, check_core, elementwise, is_weak, refuse_masked, shape_error, where
+from ._validate import as_float, elementwise, is_weak, where
 
 Q = (4,)
 V = (3,)
 M3 = (3, 3)
-M4 = (4, 4)
 
 _TO_DEG = 180.0 / math.pi
 _FROM_DEG = math.pi / 180.0
 
 # --------------------------------------------------------------------------
 # per-element formulas
-
-
-@element
-def store44(out, i, m):
-    for k in range(16):
-        out[i, k // 4, k % 4] = m[k]
 
 
 @element
@@ -115,31 +107,32 @@ def polar33(a, eps):
     return x
 
 
-@element
-def shepperd(a):
-    """Unit quaternion of a rotation matrix (9-tuple), branching on the largest of
-    the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
-    the component picked by the branch comes out positive."""
+@inline
+def shepperd_raw(a):
+    """The quaternion of a rotation matrix (9-tuple), unnormalised (its norm is 4
+    times the largest of |w|, |x|, |y|, |z| for a rotation), choosing on the largest
+    of the diagonal and the trace exactly as scipy's ``_from_matrix_orthogonal``:
+    the component picked comes out positive. Branch-free (the four candidates
+    share their sums; selects pick one), so the row loops vectorise."""
     one = like(a[0], 1.0)
     two = like(a[0], 2.0)
     tr = a[0] + a[4] + a[8]
-    choice = 0
-    best = a[0]
-    if a[4] > best:
-        choice, best = 1, a[4]
-    if a[8] > best:
-        choice, best = 2, a[8]
-    if tr > best:
-        choice = 3
-    if choice == 0:
-        q = (a[7] - a[5], one - tr + two * a[0], a[3] + a[1], a[6] + a[2])
-    elif choice == 1:
-        q = (a[2] - a[6], a[3] + a[1], one - tr + two * a[4], a[7] + a[5])
-    elif choice == 2:
-        q = (a[3] - a[1], a[6] + a[2], a[7] + a[5], one - tr + two * a[8])
-    else:
-        q = (one + tr, a[7] - a[5], a[2] - a[6], a[3] - a[1])
-    return E.qnormalize(q)
+    d10, s10, s20, d20, s21, d21 = a[3] - a[1], a[3] + a[1], a[6] + a[2], a[2] - a[6], a[7] + a[5], a[7] - a[5]
+    c1 = a[4] > a[0]  # the first largest of a[0], a[4], a[8], tr, as scipy's argmax
+    b1 = a[4] if c1 else a[0]
+    c2 = a[8] > b1
+    c3 = tr > (a[8] if c2 else b1)
+    q0 = (d21, one - tr + two * a[0], s10, s20)
+    q1 = (d20, s10, one - tr + two * a[4], s21)
+    q2 = (d10, s20, s21, one - tr + two * a[8])
+    return E.pick4(c3, (one + tr, d21, d20, d10), E.pick4(c2, q2, E.pick4(c1, q1, q0)))
+
+
+@element
+def shepperd(a):
+    """Unit quaternion of a rotation matrix (9-tuple): :func:`shepperd_raw`
+    normalised (any scale)."""
+    return E.qnormalize(shepperd_raw(a))
 
 
 @inline
@@ -209,60 +202,25 @@ def rotvec_quat(v):
     return (c, k * v[0], k * v[1], k * v[2])
 
 
-@element
-def left_matrix(q):
-    """L (row-major 16-tuple) with L @ p = q ⊗ p."""
-    w, x, y, z = q
-    return (
-        w, -x, -y, -z,
-        x, w, -z, y,
-        y, z, w, -x,
-        z, -y, x, w,
-    )  # fmt: skip
-
-
-@element
-def right_matrix(q):
-    """R (row-major 16-tuple) with R @ p = p ⊗ q."""
-    w, x, y, z = q
-    return (
-        w, -x, -y, -z,
-        x, w, z, -y,
-        y, -z, w, x,
-        z, y, -x, w,
-    )  # fmt: skip
-
-
 # --------------------------------------------------------------------------
 # batched loops
 
 
-# The loops over |q|-dependent formulas compute them on q as it is and note
-# (E.far_scale, flags per block of rows: E.flags_max) whether a row
-# lies outside the range where that is exact; only then a second, serial pass
-# redoes those rows on the scaled q (E.qscaled).
+# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# a second kernel redoes the rare rows outside the range where that is exact,
+# on the scaled q (E.qscaled), only when there are some.
 
 
-@rowloop
-def _as_matrix(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            n2 = E.qdot(a, a)
-            store33(out, i, E.qmatrix_raw(a, n2))
-            flags[j] = E.far_scale(n2)
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                store33(out, i, E.qmatrix(a))
+@inline
+def _as_matrix_plain(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    n2 = E.qdot(a, a)
+    store33(out, i, E.qmatrix_raw(a, n2))
+    return E.far_scale(n2)
+
+
+_as_matrix = E.FarRows(_as_matrix_plain, E.redo(store33, E.qmatrix, "as_matrix"), "as_matrix")
 
 
 @rowloop
@@ -297,90 +255,94 @@ def _from_matrix(m, out):
     return bad if bad < n else -1
 
 
-@rowloop
-def _from_matrix_valid(m, out):
-    for i in prange(m.shape[0]):
-        E.store4(out, i, shepperd(load33(m, i)))
+@inline
+def _from_matrix_valid_plain(i, args):
+    m, out = args
+    q = shepperd_raw(load33(m, i))
+    n2 = E.qdot(q, q)
+    r = like(n2, 1.0) / np.sqrt(n2)  # one division, not four
+    E.store4(out, i, (q[0] * r, q[1] * r, q[2] * r, q[3] * r))
+    return E.far_scale(n2)
 
 
-@rowloop
-def _as_rotvec(q, out):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            rv, n2 = qrotvec_raw(E.load4(q, i))
-            E.store3(out, i, rv)
-            flags[j] = E.far_scale(n2)
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(qrotvec_raw(a)[1]):
-                E.store3(out, i, qrotvec(a))
+@inline
+def _from_matrix_valid_scaled(i, args):
+    m, out = args
+    q = shepperd_raw(load33(m, i))
+    if E.far_scale(E.qdot(q, q)):
+        E.store4(out, i, E.qnormalize(q))
 
 
-@rowloop
-def _from_rotvec(r, out):
-    # Returns 1 when some rows have half angles beyond the fast sincos range (or inf):
-    # _from_rotvec_far redoes those with libm, as quatarray.euler does. The flags go
-    # to a small array per block of rows (E.flags_max): a reduction inside the
-    # sincos loop made LLVM interleave it, which spilled registers and cost 20 %
-    # (an int64 count also kept the float32 loop from vectorising).
-    n = r.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            v = E.load3(r, i)
-            h = like(v[0], 0.5) * E.vnorm(v)  # ≥ 0 (or nan)
-            s, c = sincos(h)
-            k = half_sinc(h, s)
-            E.store4(out, i, (c, k * v[0], k * v[1], k * v[2]))  # rotvec_quat(v), with h at hand
-            flags[j] = np.int32(1) if h > sincos_limit(h) else np.int32(0)
-        far = max(far, E.flags_max(flags, m))
-    return far
+_from_matrix_valid = E.FarRows(_from_matrix_valid_plain, _from_matrix_valid_scaled, "from_matrix_valid")
 
 
-@rowloop(parallel=False)
-def _from_rotvec_far(r, out):
-    for i in range(r.shape[0]):
-        v = E.load3(r, i)
-        h = like(v[0], 0.5) * E.vnorm(v)
-        if abs(h) > sincos_limit(h):
-            k = half_sinc(h, np.sin(h))
-            E.store4(out, i, (np.cos(h), k * v[0], k * v[1], k * v[2]))
+@inline
+def _as_rotvec_plain(i, args):
+    q, out = args
+    rv, n2 = qrotvec_raw(E.load4(q, i))
+    E.store3(out, i, rv)
+    return E.far_scale(n2)
 
 
-@rowloop
-def _as_axis_angle(q, axis, ang):
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            u, t, n2 = qaxis_angle_raw(E.load4(q, i))
-            E.store3(axis, i, u)
-            ang[i] = t
-            flags[j] = E.far_scale(n2)
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(qaxis_angle_raw(a)[2]):
-                u, t = qaxis_angle(a)
-                E.store3(axis, i, u)
-                ang[i] = t
+@inline
+def _as_rotvec_scaled(i, args):
+    q, out = args
+    a = E.load4(q, i)
+    if E.far_scale(qrotvec_raw(a)[1]):
+        E.store3(out, i, qrotvec(a))
+
+
+_as_rotvec = E.FarRows(_as_rotvec_plain, _as_rotvec_scaled, "as_rotvec")
+
+
+# from_rotvec's far rows: half angles beyond the fast sincos range (or inf),
+# redone with libm's sin and cos (as quatarray.euler does)
+
+
+@inline
+def _from_rotvec_plain(i, args):
+    r, out = args
+    v = E.load3(r, i)
+    h = like(v[0], 0.5) * E.vnorm(v)  # ≥ 0 (or nan)
+    s, c = sincos(h)
+    k = half_sinc(h, s)
+    E.store4(out, i, (c, k * v[0], k * v[1], k * v[2]))  # rotvec_quat(v), with h at hand
+    return np.int32(1) if h > sincos_limit(h) else np.int32(0)
+
+
+@inline
+def _from_rotvec_scaled(i, args):
+    r, out = args
+    v = E.load3(r, i)
+    h = like(v[0], 0.5) * E.vnorm(v)
+    if abs(h) > sincos_limit(h):
+        k = half_sinc(h, np.sin(h))
+        E.store4(out, i, (np.cos(h), k * v[0], k * v[1], k * v[2]))
+
+
+_from_rotvec = E.FarRows(_from_rotvec_plain, _from_rotvec_scaled, "from_rotvec")
+
+
+@inline
+def _as_axis_angle_plain(i, args):
+    q, axis, ang = args
+    u, t, n2 = qaxis_angle_raw(E.load4(q, i))
+    E.store3(axis, i, u)
+    ang[i] = t
+    return E.far_scale(n2)
+
+
+@inline
+def _as_axis_angle_scaled(i, args):
+    q, axis, ang = args
+    a = E.load4(q, i)
+    if E.far_scale(qaxis_angle_raw(a)[2]):
+        u, t = qaxis_angle(a)
+        E.store3(axis, i, u)
+        ang[i] = t
+
+
+_as_axis_angle = E.FarRows(_as_axis_angle_plain, _as_axis_angle_scaled, "as_axis_angle")
 
 
 @rowloop
@@ -404,59 +366,6 @@ def _from_axis_angle(axis, ang, out):
             c = like(un, np.nan)  # a nan or inf axis gives nan, not (cos h, nan, …)
         E.store4(out, i, (c, k * u[0], k * u[1], k * u[2]))
     return bad if bad < n else -1
-
-
-@rowloop
-def _as_xyzw(q, out):
-    for i in prange(q.shape[0]):
-        w, x, y, z = E.load4(q, i)
-        E.store4(out, i, (x, y, z, w))
-
-
-@rowloop
-def _from_xyzw(a, out):
-    for i in prange(a.shape[0]):
-        x, y, z, w = E.load4(a, i)
-        E.store4(out, i, (w, x, y, z))
-
-
-@rowloop
-def _as_left_matrix(q, out):
-    for i in prange(q.shape[0]):
-        store44(out, i, left_matrix(E.load4(q, i)))
-
-
-@rowloop
-def _as_right_matrix(q, out):
-    for i in prange(q.shape[0]):
-        store44(out, i, right_matrix(E.load4(q, i)))
-
-
-@rowloop
-def _as_su2(q, out):
-    # out: the float view (n, 2, 4) of a complex (n, 2, 2) array: re, im, re, im.
-    for i in prange(q.shape[0]):
-        w, x, y, z = E.load4(q, i)
-        out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = w, x, y, z
-        out[i, 1, 0], out[i, 1, 1], out[i, 1, 2], out[i, 1, 3] = -y, z, w, -x
-
-
-@rowloop
-def _from_su2(m, out):
-    # m: float view (n, 2, 4) of complex (n, 2, 2); averages the two copies of
-    # each component (the orthogonal projection onto [[a, b], [−b̄, ā]]).
-    for i in prange(m.shape[0]):
-        half = like(m, 0.5)
-        E.store4(
-            out,
-            i,
-            (
-                half * (m[i, 0, 0] + m[i, 1, 2]),
-                half * (m[i, 0, 1] - m[i, 1, 3]),
-                half * (m[i, 0, 2] - m[i, 1, 0]),
-                half * (m[i, 0, 3] + m[i, 1, 1]),
-            ),
-        )
 
 
 # --------------------------------------------------------------------------
@@ -640,11 +549,7 @@ def from_rotvec(r, degrees=False, out=None):
     >>> qa.from_rotvec([1e-12, 0, 0])
     array([1.e+00, 5.e-13, 0.e+00, 0.e+00])
     """
-    inputs = [(_radians(r, "r", degrees), "r", V)]
-    res, far = _with_status(_from_rotvec, inputs, [Q], out)
-    if far:  # rare: |r| beyond 2·10⁶ rad (float32: 65536 rad) or inf
-        elementwise(_from_rotvec_far, inputs, [Q], res)
-    return res
+    return elementwise(_from_rotvec, [(_radians(r, "r", degrees), "r", V)], [Q], out)
 
 
 def as_axis_angle(q, degrees=False):
@@ -712,360 +617,3 @@ def from_axis_angle(axis, angle, degrees=False, out=None):
             f"Expected `axis` to be non-zero vectors; {where(bad, res.shape[:-1])} is (0, 0, 0)."
         )
     return res
-
-
-# --------------------------------------------------------------------------
-# layouts and other libraries
-
-
-def as_xyzw(q, out=None):
-    """Scalar-last layout (x, y, z, w), as used by ROS and scipy's default.
-
-    Examples
-    --------
-    >>> import quatarray as qa
-    >>> qa.as_xyzw([1, 2, 3, 4])
-    array([2., 3., 4., 1.])
-    """
-    return elementwise(_as_xyzw, [(q, "q", Q)], [Q], out)
-
-
-def from_xyzw(a, out=None):
-    """Quaternions (w, x, y, z) from the scalar-last layout (x, y, z, w).
-
-    Examples
-    --------
-    >>> import quatarray as qa
-    >>> qa.from_xyzw([2, 3, 4, 1])
-    array([1., 2., 3., 4.])
-    """
-    return elementwise(_from_xyzw, [(a, "a", Q)], [Q], out)
-
-
-def to_scipy(q):
-    """A ``scipy.spatial.transform.Rotation`` holding the rotations of `q`.
-
-    scipy normalises the quaternions (float64) and raises ``ValueError`` for a
-    zero quaternion.
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> r = qa.to_scipy(qa.from_rotvec([0, 0, 0.5]))
-    >>> np.round(r.as_rotvec(), 12)
-    array([0. , 0. , 0.5])
-    """
-    from scipy.spatial.transform import Rotation
-
-    a = check_core(as_float(q, "q"), "q", Q)
-    return Rotation.from_quat(a, scalar_first=True)
-
-
-def from_scipy(rotation):
-    """Quaternions (w, x, y, z), float64, of a ``scipy.spatial.transform.Rotation``.
-
-    The sign is the one scipy stores (``as_quat(canonical=False)``).
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> from scipy.spatial.transform import Rotation
-    >>> np.round(qa.from_scipy(Rotation.from_rotvec([0, np.pi, 0])), 12)
-    array([0., 0., 1., 0.])
-    """
-    from scipy.spatial.transform import Rotation
-
-    if not isinstance(rotation, Rotation):
-        raise TypeError(
-            "Expected `rotation` to be a scipy.spatial.transform.Rotation, " f"got {type(rotation).__name__}."
-        )
-    return np.asarray(rotation.as_quat(scalar_first=True), dtype=np.float64)
-
-
-# --------------------------------------------------------------------------
-# matrix representations of the algebra
-
-
-def as_left_matrix(q, out=None):
-    """4×4 real matrices L with ``L @ p == multiply(q, p)``.
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
-    >>> np.array_equal(qa.as_left_matrix(q) @ p, qa.multiply(q, p))
-    True
-    """
-    return elementwise(_as_left_matrix, [(q, "q", Q)], [M4], out)
-
-
-def as_right_matrix(q, out=None):
-    """4×4 real matrices R with ``R @ p == multiply(p, q)``.
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
-    >>> np.array_equal(qa.as_right_matrix(q) @ p, qa.multiply(p, q))
-    True
-    """
-    return elementwise(_as_right_matrix, [(q, "q", Q)], [M4], out)
-
-
-def as_su2(q):
-    """2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
-
-    The map is multiplicative: ``as_su2(p) @ as_su2(q) == as_su2(multiply(p, q))``;
-    unit quaternions give SU(2) matrices. float32 → complex64, float64 → complex128.
-
-    Examples
-    --------
-    >>> import quatarray as qa
-    >>> qa.as_su2([1, 2, 3, 4])
-    array([[ 1.+2.j,  3.+4.j],
-           [-3.+4.j,  1.-2.j]])
-    """
-    f = elementwise(_as_su2, [(q, "q", Q)], [(2, 4)])
-    return f.view(np.complex64 if f.dtype == np.float32 else np.complex128)
-
-
-def from_su2(m, out=None):
-    """Quaternions of 2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
-
-    Each component appears twice in the matrix; the two copies are averaged,
-    which is exact for matrices of this form and the nearest quaternion
-    matrix (Frobenius) for any other. complex64 → float32, complex128 (and
-    real input, read as having zero imaginary part) → float64.
-
-    Parameters
-    ----------
-    m : array_like, shape (..., 2, 2)
-    out : ndarray, optional
-        Result array of shape ``(..., 4)``.
-
-    Examples
-    --------
-    >>> import quatarray as qa
-    >>> qa.from_su2([[1 + 2j, 3 + 4j], [-3 + 4j, 1 - 2j]])
-    array([1., 2., 3., 4.])
-    """
-    refuse_masked(m, "m")
-    try:
-        a = np.asarray(m)
-    except (ValueError, TypeError) as exc:
-        raise TypeError(f"Expected `m` to be an array of complex or real numbers: {exc}") from None
-    kind = a.dtype.kind
-    if kind == "c":  # complex64 in either byte order stays complex64
-        ctype = np.complex64 if a.dtype.itemsize <= 8 else np.complex128
-    elif kind == "f" and a.dtype.itemsize <= 4:
-        ctype = np.complex64
-    elif kind in "fbiu":
-        ctype = np.complex128
-    else:
-        raise TypeError(f"Expected `m` to have a complex or real dtype, got {a.dtype}.")
-    if a.ndim < 2 or a.shape[-2:] != (2, 2):
-        raise shape_error("m", "(..., 2, 2)", a.shape)
-    a = np.ascontiguousarray(a, dtype=ctype)
-    f = a.view(np.float32 if ctype == np.complex64 else np.float64)
-    return elementwise(_from_su2, [(f, "m", (2, 4))], [Q], out)
-
-
-# --------------------------------------------------------------------------
-# modified Rodrigues parameters and Gibbs vectors
-
-
-@inline
-def qmrp(q):
-    """s·u / (|q| + |w|), s = −1 for w < 0: scipy's MRP of the shortest of ±q/|q|
-    (|p| ≤ 1), for any scale of q (:func:`_elements.qscaled`); zero q gives nan."""
-    q = E.qscaled(q)[0]
-    w = q[0]
-    d = np.sqrt(E.qdot(q, q)) + abs(w)
-    k = like(w, 1.0) / d
-    k = -k if w < like(w, 0.0) else k
-    return (k * q[1], k * q[2], k * q[3])
-
-
-@inline
-def mrp_quat(p):
-    """((1 − |p|²), 2p) / (1 + |p|²): the unit quaternion of an MRP (w < 0 for |p| > 1)."""
-    s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
-    one = like(s, 1.0)
-    k = one / (one + s)
-    t = k + k
-    return ((one - s) * k, t * p[0], t * p[1], t * p[2])
-
-
-@element
-def qgibbs(q):
-    """u / w = tan(θ/2)·axis; at w = 0 (a half turn) ±inf along the axis's
-    non-zero components, signed as the canonical quaternion; zero q gives nan."""
-    w, x, y, z = q
-    zero = like(w, 0.0)
-    if w != zero:
-        return (x / w, y / w, z / w)
-    if (x == zero) & (y == zero) & (z == zero):
-        nan = like(w, np.nan)
-        return (nan, nan, nan)
-    inf = like(w, np.inf)
-    sg = -like(w, 1.0) if E.canonical_flip(q) else like(w, 1.0)
-    return (
-        zero if x == zero else sg * np.copysign(inf, x),
-        zero if y == zero else sg * np.copysign(inf, y),
-        zero if z == zero else sg * np.copysign(inf, z),
-    )
-
-
-@element
-def gibbs_quat(g):
-    """(1, g) / sqrt(1 + |g|²), for any scale of g; infinite components (a half
-    turn) give (0, the unit direction of the infinite components)."""
-    one = like(g[0], 1.0)
-    zero = like(g[0], 0.0)
-    if np.isinf(g[0]) | np.isinf(g[1]) | np.isinf(g[2]):
-        if np.isnan(g[0]) | np.isnan(g[1]) | np.isnan(g[2]):
-            nan = like(g[0], np.nan)
-            return (nan, nan, nan, nan)
-        return E.qnormalize((
-            zero,
-            np.copysign(one, g[0]) if np.isinf(g[0]) else zero,
-            np.copysign(one, g[1]) if np.isinf(g[1]) else zero,
-            np.copysign(one, g[2]) if np.isinf(g[2]) else zero,
-        ))  # fmt: skip
-    return E.qnormalize((one, g[0], g[1], g[2]))
-
-
-@rowloop
-def _as_mrp(q, out):
-    for i in prange(q.shape[0]):
-        E.store3(out, i, qmrp(E.load4(q, i)))
-
-
-@rowloop
-def _from_mrp(p, out):
-    for i in prange(p.shape[0]):
-        E.store4(out, i, mrp_quat(E.load3(p, i)))
-
-
-@rowloop
-def _as_gibbs(q, out):
-    for i in prange(q.shape[0]):
-        E.store3(out, i, qgibbs(E.load4(q, i)))
-
-
-@rowloop
-def _from_gibbs(g, out):
-    for i in prange(g.shape[0]):
-        E.store4(out, i, gibbs_quat(E.load3(g, i)))
-
-
-def as_mrp(q, out=None):
-    """Modified Rodrigues parameters tan(θ/4)·axis, as scipy's ``Rotation.as_mrp``.
-
-    The shortest of the two MRPs of each rotation (θ ≤ π, so |p| ≤ 1): the
-    sign of `q` is chosen with w ≥ 0 first. Any non-zero scale of `q`; a zero
-    quaternion gives nan.
-
-    Parameters
-    ----------
-    q : array_like, shape (..., 4)
-    out : ndarray, optional
-        Result array of shape ``(..., 3)``.
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> np.round(qa.as_mrp(qa.from_rotvec([0, 0, np.pi])), 12)  # half turn: |p| = 1
-    array([0., 0., 1.])
-    >>> np.round(qa.as_mrp([0, 0, 0, -2]), 12) + 0.0  # any scale, either sign
-    array([ 0.,  0., -1.])
-    """
-    return elementwise(_as_mrp, [(q, "q", Q)], [V], out)
-
-
-def from_mrp(p, out=None):
-    """Unit quaternions of modified Rodrigues parameters, as scipy's ``Rotation.from_mrp``.
-
-    q = ((1 − |p|²), 2p) / (1 + |p|²); |p| > 1 (the longer of the two MRPs of
-    a rotation) gives w < 0, as in scipy (the same rotation).
-
-    Parameters
-    ----------
-    p : array_like, shape (..., 3)
-    out : ndarray, optional
-        Result array of shape ``(..., 4)``.
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> qa.from_mrp([0, 0, 1])  # a half turn about z
-    array([0., 0., 0., 1.])
-    >>> np.allclose(qa.as_mrp(qa.from_mrp([0.1, -0.2, 0.3])), [0.1, -0.2, 0.3])
-    True
-    """
-    return elementwise(_from_mrp, [(p, "p", V)], [Q], out)
-
-
-def as_gibbs(q, out=None):
-    """Gibbs (Rodrigues) vectors g = u/w = tan(θ/2)·axis.
-
-    The same for q and −q and any non-zero scale. A half turn (w = 0) gives
-    inf along the axis (signed as the canonical quaternion, 0 for zero
-    components of the axis); a zero quaternion gives nan.
-
-    Parameters
-    ----------
-    q : array_like, shape (..., 4)
-    out : ndarray, optional
-        Result array of shape ``(..., 3)``.
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> np.round(qa.as_gibbs(qa.from_rotvec([0, np.pi / 2, 0])), 12)  # tan(45°) = 1
-    array([0., 1., 0.])
-    >>> qa.as_gibbs([0, 0, -1, 0])
-    array([ 0., inf,  0.])
-    """
-    return elementwise(_as_gibbs, [(q, "q", Q)], [V], out)
-
-
-def from_gibbs(g, out=None):
-    """Unit quaternions (1, g)/sqrt(1 + |g|²) of Gibbs vectors, so w ≥ 0.
-
-    Any finite scale of g; infinite components give the half turn (w = 0)
-    about the direction of the infinite components (the inverse of
-    :func:`as_gibbs` at a half turn about an axis with ≤ 1 non-zero
-    component, or with all its components infinite).
-
-    Parameters
-    ----------
-    g : array_like, shape (..., 3)
-    out : ndarray, optional
-        Result array of shape ``(..., 4)``.
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-
-    Examples
-    --------
-    >>> import numpy as np, quatarray as qa
-    >>> np.round(qa.as_rotvec(qa.from_gibbs([0, 0, 1])), 12)  # tan(θ/2) = 1: θ = 90°
-    array([0.        , 0.        , 1.57079633])
-    >>> qa.from_gibbs([np.inf, 0, 0])
-    array([0., 1., 0., 0.])
-    """
-    return elementwise(_from_gibbs, [(g, "g", V)], [Q], out)

@@ -27,7 +27,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _trig
-from ._jit import element, like, prange, rowloop
+from ._jit import element, inline, ir_inline, like, prange, rowloop
 from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
 
@@ -49,12 +49,12 @@ _GIMBAL = (
 
 
 @element
-def sincos(x):
-    """:func:`quatarray._trig.sincos` as a call that LLVM inlines: inlined at
-    numba-IR level three times into :func:`_from_euler`'s loop it leaves
-    branches that stop the vectoriser (about 2× slower in float64, 4× in
-    float32), while this small function is inlined by LLVM after its
-    selects are formed."""
+def sincos_call(x):
+    """:func:`quatarray._trig.sincos` as an element function of its own (an
+    LLVM call that LLVM inlines into :func:`_from_euler`'s loop after its
+    selects are formed). Inlined at numba-IR level three times into that loop
+    it left branches that stop the vectoriser (about 2× slower in float64, 4×
+    in float32)."""
     return _trig.sincos(x)
 
 
@@ -78,11 +78,10 @@ def wrap(a):
 #
 # The loops read and write flat views of C-contiguous arrays (fixed strides 4
 # and 3) and keep every per-row decision a select, so LLVM vectorises them.
-# Their bodies are written out in the loop rather than as one per-rotation
-# element function: LLVM does not inline a function that large, and a call
-# in the loop stops vectorisation (the small elements above are inlined).
-# Serial only: numba's parallel (parfor) version of these loops does not
-# vectorise and ran slower than the serial SIMD loop on this 2-core machine.
+# A call in the loop stops vectorisation: as_euler's per-rotation function is
+# forced inline (_jit.inline); from_euler's body is written out in its loop.
+# Serial only: numba's parallel (parfor) version of these loops did not
+# vectorise and ran slower than the serial SIMD loop with two cores.
 
 
 @element
@@ -101,64 +100,90 @@ def compose_axes(e0, e1, e2, intrinsic):
     return E.qmul(e2, E.qmul(e1, e0))
 
 
-@rowloop(parallel=False)
-def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked):
-    """Bernardes & Viollet, row by row; ``locked[r]`` says whether row r is at
-    gimbal lock (a per-row flag rather than a count: an integer reduction kept
-    the float32 loop from vectorising).
+@ir_inline
+def euler_angles(q, ci, cj, ck, tb, sign, ext, lamb, scale):
+    """Bernardes & Viollet for one quaternion q (its components squared as they
+    are: scale it first if need be): ``(angle 0, angle 1, angle 2, at gimbal
+    lock, n2)``, n2 = |q|² (twice that for Tait–Bryan sequences) from the sums
+    of squares it takes the middle angle from, for E.far_scale; the parameters
+    as in :func:`_as_euler`, in q's float type."""
+    w, x, y, z = q
+    one = like(w, 1.0)
+    zero = like(w, 0.0)
+    two = like(w, 2.0)
+    qi = x if ci == 1 else (y if ci == 2 else z)
+    qj = x if cj == 1 else (y if cj == 2 else z)
+    qk = sign * (x if ck == 1 else (y if ck == 2 else z))
+    # step 1: permuted (for Tait–Bryan also rotated by π/2 about j) elements
+    a = w - tb * qj
+    b = qi + tb * qk
+    c = qj + tb * w
+    d = qk - tb * qi
+    s1 = c * c + d * d
+    s2 = a * a + b * b
+    h1 = np.sqrt(s1)  # np: numpy scalars also when run as plain Python
+    h2 = np.sqrt(s2)
+    # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
+    # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
+    # which is as sharp near π as near 0, also in float32.
+    mid = two * atan2(h1, h2)
+    tiny = like(w, 5e-8)
+    hh = h1 + h2
+    ok = (hh > zero) & (hh < like(w, math.inf))  # zero, inf or nan quaternion → nan
+    case1 = (h1 <= tiny * h2) & ok
+    case2 = (h2 <= tiny * h1) & ok  # excludes case1 when ok (tiny² < 1)
+    lock = case1 | case2
+    # step 3: first and third angles; at gimbal lock scipy's rule: the
+    # third angle is 0 and the first carries the whole rotation
+    hs = atan2(b, a)
+    hd = atan2(d, c)
+    g = two * hs if case1 else (-two * hd if ext else two * hd)
+    u = hs - hd if not lock else (g if ext else zero)  # first angle slot
+    v = hs + hd if not lock else (zero if ext else g)  # third angle slot
+    v = v * (sign if tb == one else one)
+    nan = like(w, math.nan)
+    return (
+        nan if not ok else wrap(u if ext else v) * scale,
+        nan if not ok else wrap(mid - lamb) * scale,
+        nan if not ok else wrap(v if ext else u) * scale,
+        lock,
+        s1 + s2,
+    )
 
-    ``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
-    the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan
-    else 0, ``sign`` the parity of (i, j, k), ``ext`` True for extrinsic,
-    ``lamb`` π/2 for Tait–Bryan else 0, ``scale`` 1 or 180/π.
-    """
-    n = q.shape[0]
-    qf = q.reshape(n * 4)
-    of = out.reshape(n * 3)
-    # parameters in the array's float type, once
-    t = like(q, tb)
-    sg = like(q, sign)
-    lb = like(q, lamb)
-    s = like(q, scale)
-    for r in prange(n):
-        # scaled by the largest component (E.qscaled): any scale of q
-        (w, x, y, z), _ = E.qscaled((qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]))
-        one = like(w, 1.0)
-        zero = like(w, 0.0)
-        two = like(w, 2.0)
-        qi = x if ci == 1 else (y if ci == 2 else z)
-        qj = x if cj == 1 else (y if cj == 2 else z)
-        qk = sg * (x if ck == 1 else (y if ck == 2 else z))
-        # step 1: permuted (for Tait–Bryan also rotated by π/2 about j) elements
-        a = w - t * qj
-        b = qi + t * qk
-        c = qj + t * w
-        d = qk - t * qi
-        h1 = np.sqrt(c * c + d * d)  # np: numpy scalars also when run as plain Python
-        h2 = np.sqrt(a * a + b * b)
-        # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
-        # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
-        # which is as sharp near π as near 0, also in float32.
-        mid = two * atan2(h1, h2)
-        tiny = like(w, 5e-8)
-        hh = h1 + h2
-        ok = (hh > zero) & (hh < like(w, math.inf))  # zero, inf or nan quaternion → nan
-        case1 = (h1 <= tiny * h2) & ok
-        case2 = (h2 <= tiny * h1) & ok  # excludes case1 when ok (tiny² < 1)
-        lock = case1 | case2
-        # step 3: first and third angles; at gimbal lock scipy's rule: the
-        # third angle is 0 and the first carries the whole rotation
-        hs = atan2(b, a)
-        hd = atan2(d, c)
-        g = two * hs if case1 else (-two * hd if ext else two * hd)
-        u = hs - hd if not lock else (g if ext else zero)  # first angle slot
-        v = hs + hd if not lock else (zero if ext else g)  # third angle slot
-        v = v * (sg if tb == 1 else one)
-        nan = like(w, math.nan)
-        of[3 * r] = nan if not ok else wrap(u if ext else v) * s
-        of[3 * r + 1] = nan if not ok else wrap(mid - lb) * s
-        of[3 * r + 2] = nan if not ok else wrap(v if ext else u) * s
-        locked[r] = lock
+
+@inline
+def _as_euler_plain(i, args):
+    q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked = args
+    r = euler_angles(E.load4(q, i), ci, cj, ck, like(q, tb), like(q, sign), ext, like(q, lamb), like(q, scale))
+    E.store3(out, i, (r[0], r[1], r[2]))
+    locked[i] = r[3]
+    return E.far_scale(r[4])
+
+
+@inline
+def _as_euler_scaled(i, args):
+    q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked = args
+    a = E.load4(q, i)
+    tb, sign, lamb, scale = like(q, tb), like(q, sign), like(q, lamb), like(q, scale)
+    if E.far_scale(euler_angles(a, ci, cj, ck, tb, sign, ext, lamb, scale)[4]):
+        r = euler_angles(E.qscaled(a)[0], ci, cj, ck, tb, sign, ext, lamb, scale)
+        E.store3(out, i, (r[0], r[1], r[2]))
+        locked[i] = r[3]
+
+
+# Serial only: numba's parallel (parfor) version of this loop did not vectorise
+# and ran slower than the serial SIMD loop with two cores.
+_as_euler = E.FarRows(_as_euler_plain, _as_euler_scaled, "as_euler", parallel=False)
+_as_euler.__doc__ = """``_as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked)``:
+Bernardes & Viollet, row by row (:func:`euler_angles`, on q as it is, the rows
+far from unit scale again on the scaled q: E.FarRows); ``locked[r]`` says
+whether row r is at gimbal lock (a per-row flag rather than a count: an
+integer reduction kept the float32 loop from vectorising).
+
+``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
+the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan else
+0, ``sign`` the parity of (i, j, k), ``ext`` True for extrinsic, ``lamb`` π/2
+for Tait–Bryan else 0, ``scale`` 1 or 180/π."""
 
 
 @rowloop(parallel=False)
@@ -174,9 +199,9 @@ def _from_euler(angles, a0, a1, a2, intrinsic, unit, out, far):
         h0 = af[3 * r] * k
         h1 = af[3 * r + 1] * k
         h2 = af[3 * r + 2] * k
-        s0, c0 = sincos(h0)
-        s1, c1 = sincos(h1)
-        s2, c2 = sincos(h2)
+        s0, c0 = sincos_call(h0)
+        s1, c1 = sincos_call(h1)
+        s2, c2 = sincos_call(h2)
         e0 = axis_quat(a0, s0, c0)
         e1 = axis_quat(a1, s1, c1)
         e2 = axis_quat(a2, s2, c2)
@@ -269,7 +294,7 @@ def _parse_from_seq(seq):
     raise ValueError(f"{_ALLOWED_SHORT}; got {seq!r}.")
 
 
-def _rows(a, core):
+def _contiguous_rows(a, core):
     """``a`` as a C-contiguous ``(n,) + core`` array (a copy only when ``a`` is strided)."""
     return np.ascontiguousarray(a.reshape((-1,) + core))
 
@@ -340,7 +365,7 @@ def euler_locked(q, seq, degrees=False):
     for callers that count lock across many calls or threads (the command line)."""
     _, _, params = _parse_seq(seq)
     a = check_core(as_float(q, "q"), "q", (4,))
-    flat = _rows(a, (4,))
+    flat = _contiguous_rows(a, (4,))
     out = np.empty((flat.shape[0], 3), a.dtype)
     flags = np.empty(flat.shape[0], np.bool_)
     _as_euler(flat, *params, 180.0 / math.pi if degrees else 1.0, out, flags)
@@ -384,7 +409,7 @@ def from_euler(seq, angles, degrees=False):
     if k == 1 and a.ndim == 0:
         a = a[None]
     a = check_core(a, "angles", (k,))
-    flat = _rows(a, (k,))
+    flat = _contiguous_rows(a, (k,))
     if k < 3:  # zero angles about the padding axis: an exact identity factor
         flat = np.concatenate([flat, np.zeros((flat.shape[0], 3 - k), flat.dtype)], axis=1)
     out = np.empty((flat.shape[0], 4), a.dtype)

@@ -251,7 +251,7 @@ def _check_options(frame, hold):
 
 def _blocks(n):
     """Blocks of the scan: one per thread for long streams, else one."""
-    if n < max(_jit.PARALLEL_MIN_ROWS, 2 * TILE):
+    if n < max(_jit.min_rows(), 2 * TILE):
         return 1
     return max(1, min(numba.get_num_threads(), (n - 1) // TILE))
 

@@ -1,37 +1,36 @@
 """Rotating vectors by quaternions."""
 
-import numpy as np
-
 from . import _elements as E
-from ._jit import prange, rowloop
+from ._jit import inline, prange, rowloop
 from ._validate import as_float, elementwise
 
 
-@rowloop
-def _rotate(q, v, out):
-    # On q as it is, then the rows of q far from unit scale again on the scaled
-    # q (E.far_scale); the first pass leaves those rows of `out` (which may be
-    # `v`) holding v.
-    n = q.shape[0]
-    far = np.int32(0)
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            x = E.load3(v, i)
-            n2 = E.qdot(a, a)
-            f = E.far_scale(n2)
-            E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
-            flags[j] = f
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(q.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                E.store3(out, i, E.qrotate(a, E.load3(v, i)))
+# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# a second kernel redoes the rare rows outside the range where that is exact,
+# on the scaled q (E.qscaled), only when there are some. The first pass leaves those rows of
+# `out` (which may be `v`) holding v.
+
+
+@inline
+def _rotate_plain(i, args):
+    q, v, out = args
+    a = E.load4(q, i)
+    x = E.load3(v, i)
+    n2 = E.qdot(a, a)
+    f = E.far_scale(n2)
+    E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
+    return f
+
+
+@inline
+def _rotate_scaled(i, args):
+    q, v, out = args
+    a = E.load4(q, i)
+    if E.far_scale(E.qdot(a, a)):
+        E.store3(out, i, E.qrotate(a, E.load3(v, i)))
+
+
+_rotate = E.FarRows(_rotate_plain, _rotate_scaled, "rotate")
 
 
 @rowloop

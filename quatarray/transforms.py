@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, like, prange, rowloop
+from ._jit import element, inline, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, load33, matmul, matvec, scale9, store33, transpose
 from .conversions import from_matrix
@@ -69,34 +69,35 @@ def _mat_inverse(m):
 # batched loops
 
 
-@rowloop
-def _apply_vqs(v, q, s, p, out):
-    # On q as it is, then the rows of q far from unit scale (E.far_scale) again
-    # on the scaled q. `out` may be `p` or `v`: the first pass leaves such rows
-    # holding the input that `out` is, for the second pass to read.
-    n = p.shape[0]
-    far = np.int32(0)
+# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# a second kernel redoes the rare rows outside the range where that is exact,
+# on the scaled q (E.qscaled), only when there are some. `out` may be `p` or `v`: the first
+# pass leaves those rows holding the input that `out` is, for the second to read.
+
+
+@inline
+def _apply_vqs_plain(i, args):
+    v, q, s, p, out = args
+    a = E.load4(q, i)
+    x = E.load3(p, i)
+    t = E.load3(v, i)
+    n2 = E.qdot(a, a)
+    f = E.far_scale(n2)
     keep_v = out.ctypes.data == v.ctypes.data
-    for b in prange((n + E.FLAG_BLOCK - 1) // E.FLAG_BLOCK):
-        lo = b * E.FLAG_BLOCK
-        m = min(n - lo, E.FLAG_BLOCK)
-        flags = np.empty(E.FLAG_BLOCK, np.int32)
-        for j in range(m):
-            i = lo + j
-            a = E.load4(q, i)
-            x = E.load3(p, i)
-            t = E.load3(v, i)
-            n2 = E.qdot(a, a)
-            f = E.far_scale(n2)
-            E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
-            flags[j] = f
-        far = max(far, E.flags_max(flags, m))
-    if far:
-        for i in range(p.shape[0]):
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                r = _scale3(E.load3(p, i), s[i])
-                E.store3(out, i, _add3(E.qrotate(a, r), E.load3(v, i)))
+    E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
+    return f
+
+
+@inline
+def _apply_vqs_scaled(i, args):
+    v, q, s, p, out = args
+    a = E.load4(q, i)
+    if E.far_scale(E.qdot(a, a)):
+        r = _scale3(E.load3(p, i), s[i])
+        E.store3(out, i, _add3(E.qrotate(a, r), E.load3(v, i)))
+
+
+_apply_vqs = E.FarRows(_apply_vqs_plain, _apply_vqs_scaled, "apply_vqs")
 
 
 @rowloop

@@ -81,11 +81,13 @@ def test_as_euler_float32(quats, seq):
 def test_kernels_stay_float32():
     qa.as_euler(np.ones((3, 4), np.float32), "xyz")
     qa.from_euler("xyz", np.ones((3, 3), np.float32))
-    for k in (euler._as_euler.serial, euler._from_euler.serial):
-        sigs = [s for s in k.nopython_signatures if s.args[0].dtype.name == "float32"]
+    # (as_euler's loop is an E.FarRows: its first pass takes the arguments as one *args tuple)
+    for k in (euler._as_euler.first.serial, euler._from_euler.serial):
+        sigs = [getattr(s.args[0], "types", s.args) for s in k.nopython_signatures]
+        sigs = [s for s in sigs if s[0].dtype.name == "float32"]
         assert sigs
         for s in sigs:  # every float array argument (input and output) is float32
-            arrays = [a for a in s.args if hasattr(a, "ndim") and "float" in a.dtype.name]
+            arrays = [a for a in s if hasattr(a, "ndim") and "float" in a.dtype.name]
             assert len(arrays) == 2 and all(a.dtype.name == "float32" for a in arrays)
 
 

@@ -17,6 +17,7 @@ MODULES = [
     "test_algebra.py",
     "test_rotation.py",
     "test_conversions.py",
+    "test_representations.py",
     "test_euler.py",
     "test_trig.py",
     "test_interpolation.py",

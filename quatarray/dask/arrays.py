@@ -5,13 +5,10 @@ Task functions run the in-memory kernels on one block, serially (:func:`_serial`
 the scheduler supplies the parallelism.
 """
 
-import contextlib
 import importlib
 import inspect
 import math
 import operator
-import sys
-import threading
 
 import dask.array as da
 import numpy as np
@@ -28,31 +25,14 @@ Q, V, M3 = (4,), (3,), (3, 3)
 # --------------------------------------------------------------------------
 # kernels run serially inside tasks
 
-_serial_lock = threading.Lock()
-_serial_depth = 0
-_serial_saved = None
-
-
-@contextlib.contextmanager
 def _serial():
-    """Run row kernels on one thread while any task runs in this process.
+    """Run row kernels on one thread inside a task (this thread only: other
+    threads' calls keep their parallel variant; see ``_jit.serial``).
 
     The scheduler (threads or worker processes) is the parallel layer; numba
     threads inside every task would oversubscribe the cores.
     """
-    global _serial_depth, _serial_saved
-    with _serial_lock:
-        if _serial_depth == 0:
-            _serial_saved = _jit.PARALLEL_MIN_ROWS
-            _jit.PARALLEL_MIN_ROWS = sys.maxsize
-        _serial_depth += 1
-    try:
-        yield
-    finally:
-        with _serial_lock:
-            _serial_depth -= 1
-            if _serial_depth == 0:
-                _jit.PARALLEL_MIN_ROWS = _serial_saved
+    return _jit.serial()
 
 
 def _public(name):

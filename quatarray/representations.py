@@ -1,0 +1,478 @@
+"""Other representations of quaternions (w, x, y, z): the scalar-last
+(x, y, z, w) layout, ``scipy.spatial.transform.Rotation`` objects, the 4×4
+left/right multiplication matrices, 2×2 complex (SU(2)) matrices, modified
+Rodrigues parameters and Gibbs vectors.
+
+Every conversion from a quaternion accepts any non-zero scale where the
+rotation is meant (MRP, Gibbs); leading dimensions broadcast like numpy;
+float32 stays float32 and float64 stays float64. Rotation matrices, rotation
+vectors and axis–angle pairs live in :mod:`quatarray.conversions`.
+"""
+
+import numpy as np
+
+from . import _elements as E
+from ._jit import element, inline, like, prange, rowloop
+from ._validate import as_float, check_core, elementwise, refuse_masked, shape_error
+
+Q = (4,)
+V = (3,)
+M4 = (4, 4)
+
+# --------------------------------------------------------------------------
+# per-element formulas
+
+
+@element
+def store44(out, i, m):
+    for k in range(16):
+        out[i, k // 4, k % 4] = m[k]
+
+
+@element
+def left_matrix(q):
+    """L (row-major 16-tuple) with L @ p = q ⊗ p."""
+    w, x, y, z = q
+    return (
+        w, -x, -y, -z,
+        x, w, -z, y,
+        y, z, w, -x,
+        z, -y, x, w,
+    )  # fmt: skip
+
+
+@element
+def right_matrix(q):
+    """R (row-major 16-tuple) with R @ p = p ⊗ q."""
+    w, x, y, z = q
+    return (
+        w, -x, -y, -z,
+        x, w, z, -y,
+        y, -z, w, x,
+        z, y, -x, w,
+    )  # fmt: skip
+
+
+# --------------------------------------------------------------------------
+# batched loops
+
+
+@rowloop
+def _as_xyzw(q, out):
+    for i in prange(q.shape[0]):
+        w, x, y, z = E.load4(q, i)
+        E.store4(out, i, (x, y, z, w))
+
+
+@rowloop
+def _from_xyzw(a, out):
+    for i in prange(a.shape[0]):
+        x, y, z, w = E.load4(a, i)
+        E.store4(out, i, (w, x, y, z))
+
+
+@rowloop
+def _as_left_matrix(q, out):
+    for i in prange(q.shape[0]):
+        store44(out, i, left_matrix(E.load4(q, i)))
+
+
+@rowloop
+def _as_right_matrix(q, out):
+    for i in prange(q.shape[0]):
+        store44(out, i, right_matrix(E.load4(q, i)))
+
+
+@rowloop
+def _as_su2(q, out):
+    # out: the float view (n, 2, 4) of a complex (n, 2, 2) array: re, im, re, im.
+    for i in prange(q.shape[0]):
+        w, x, y, z = E.load4(q, i)
+        out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = w, x, y, z
+        out[i, 1, 0], out[i, 1, 1], out[i, 1, 2], out[i, 1, 3] = -y, z, w, -x
+
+
+@rowloop
+def _from_su2(m, out):
+    # m: float view (n, 2, 4) of complex (n, 2, 2); averages the two copies of
+    # each component (the orthogonal projection onto [[a, b], [−b̄, ā]]).
+    for i in prange(m.shape[0]):
+        half = like(m, 0.5)
+        E.store4(
+            out,
+            i,
+            (
+                half * (m[i, 0, 0] + m[i, 1, 2]),
+                half * (m[i, 0, 1] - m[i, 1, 3]),
+                half * (m[i, 0, 2] - m[i, 1, 0]),
+                half * (m[i, 0, 3] + m[i, 1, 1]),
+            ),
+        )
+
+
+# --------------------------------------------------------------------------
+# layouts and other libraries
+
+
+def as_xyzw(q, out=None):
+    """Scalar-last layout (x, y, z, w), as used by ROS and scipy's default.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.as_xyzw([1, 2, 3, 4])
+    array([2., 3., 4., 1.])
+    """
+    return elementwise(_as_xyzw, [(q, "q", Q)], [Q], out)
+
+
+def from_xyzw(a, out=None):
+    """Quaternions (w, x, y, z) from the scalar-last layout (x, y, z, w).
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.from_xyzw([2, 3, 4, 1])
+    array([1., 2., 3., 4.])
+    """
+    return elementwise(_from_xyzw, [(a, "a", Q)], [Q], out)
+
+
+def to_scipy(q):
+    """A ``scipy.spatial.transform.Rotation`` holding the rotations of `q`.
+
+    scipy normalises the quaternions (float64) and raises ``ValueError`` for a
+    zero quaternion.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> r = qa.to_scipy(qa.from_rotvec([0, 0, 0.5]))
+    >>> np.round(r.as_rotvec(), 12)
+    array([0. , 0. , 0.5])
+    """
+    from scipy.spatial.transform import Rotation
+
+    a = check_core(as_float(q, "q"), "q", Q)
+    return Rotation.from_quat(a, scalar_first=True)
+
+
+def from_scipy(rotation):
+    """Quaternions (w, x, y, z), float64, of a ``scipy.spatial.transform.Rotation``.
+
+    The sign is the one scipy stores (``as_quat(canonical=False)``).
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from scipy.spatial.transform import Rotation
+    >>> np.round(qa.from_scipy(Rotation.from_rotvec([0, np.pi, 0])), 12)
+    array([0., 0., 1., 0.])
+    """
+    from scipy.spatial.transform import Rotation
+
+    if not isinstance(rotation, Rotation):
+        raise TypeError(
+            "Expected `rotation` to be a scipy.spatial.transform.Rotation, " f"got {type(rotation).__name__}."
+        )
+    return np.asarray(rotation.as_quat(scalar_first=True), dtype=np.float64)
+
+
+# --------------------------------------------------------------------------
+# matrix representations of the algebra
+
+
+def as_left_matrix(q, out=None):
+    """4×4 real matrices L with ``L @ p == multiply(q, p)``.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
+    >>> np.array_equal(qa.as_left_matrix(q) @ p, qa.multiply(q, p))
+    True
+    """
+    return elementwise(_as_left_matrix, [(q, "q", Q)], [M4], out)
+
+
+def as_right_matrix(q, out=None):
+    """4×4 real matrices R with ``R @ p == multiply(p, q)``.
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> p, q = [1, 2, 3, 4], [5, 6, 7, 8]
+    >>> np.array_equal(qa.as_right_matrix(q) @ p, qa.multiply(p, q))
+    True
+    """
+    return elementwise(_as_right_matrix, [(q, "q", Q)], [M4], out)
+
+
+def as_su2(q):
+    """2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
+
+    The map is multiplicative: ``as_su2(p) @ as_su2(q) == as_su2(multiply(p, q))``;
+    unit quaternions give SU(2) matrices. float32 → complex64, float64 → complex128.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.as_su2([1, 2, 3, 4])
+    array([[ 1.+2.j,  3.+4.j],
+           [-3.+4.j,  1.-2.j]])
+    """
+    f = elementwise(_as_su2, [(q, "q", Q)], [(2, 4)])
+    return f.view(np.complex64 if f.dtype == np.float32 else np.complex128)
+
+
+def from_su2(m, out=None):
+    """Quaternions of 2×2 complex matrices [[w + xi, y + zi], [−y + zi, w − xi]].
+
+    Each component appears twice in the matrix; the two copies are averaged,
+    which is exact for matrices of this form and the nearest quaternion
+    matrix (Frobenius) for any other. complex64 → float32, complex128 (and
+    real input, read as having zero imaginary part) → float64.
+
+    Parameters
+    ----------
+    m : array_like, shape (..., 2, 2)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Examples
+    --------
+    >>> import quatarray as qa
+    >>> qa.from_su2([[1 + 2j, 3 + 4j], [-3 + 4j, 1 - 2j]])
+    array([1., 2., 3., 4.])
+    """
+    refuse_masked(m, "m")
+    try:
+        a = np.asarray(m)
+    except (ValueError, TypeError) as exc:
+        raise TypeError(f"Expected `m` to be an array of complex or real numbers: {exc}") from None
+    kind = a.dtype.kind
+    if kind == "c":  # complex64 in either byte order stays complex64
+        ctype = np.complex64 if a.dtype.itemsize <= 8 else np.complex128
+    elif kind == "f" and a.dtype.itemsize <= 4:
+        ctype = np.complex64
+    elif kind in "fbiu":
+        ctype = np.complex128
+    else:
+        raise TypeError(f"Expected `m` to have a complex or real dtype, got {a.dtype}.")
+    if a.ndim < 2 or a.shape[-2:] != (2, 2):
+        raise shape_error("m", "(..., 2, 2)", a.shape)
+    a = np.ascontiguousarray(a, dtype=ctype)
+    f = a.view(np.float32 if ctype == np.complex64 else np.float64)
+    return elementwise(_from_su2, [(f, "m", (2, 4))], [Q], out)
+
+
+# --------------------------------------------------------------------------
+# modified Rodrigues parameters and Gibbs vectors
+
+
+@inline
+def qmrp(q):
+    """s·u / (|q| + |w|), s = −1 for w < 0: scipy's MRP of the shortest of ±q/|q|
+    (|p| ≤ 1), for any scale of q (:func:`_elements.qscaled`); zero q gives nan."""
+    return qmrp_raw(E.qscaled(q)[0])[0]
+
+
+@inline
+def qmrp_raw(q):
+    """(:func:`qmrp` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`."""
+    w = q[0]
+    n2 = E.qdot(q, q)
+    k = like(w, 1.0) / (np.sqrt(n2) + abs(w))
+    k = -k if w < like(w, 0.0) else k
+    return (k * q[1], k * q[2], k * q[3]), n2
+
+
+@inline
+def mrp_quat(p):
+    """((1 − |p|²), 2p) / (1 + |p|²): the unit quaternion of an MRP (w < 0 for |p| > 1)."""
+    s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+    one = like(s, 1.0)
+    k = one / (one + s)
+    t = k + k
+    return ((one - s) * k, t * p[0], t * p[1], t * p[2])
+
+
+@element
+def qgibbs(q):
+    """u / w = tan(θ/2)·axis; at w = 0 (a half turn) ±inf along the axis's
+    non-zero components, signed as the canonical quaternion; zero q gives nan."""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    if w != zero:
+        return (x / w, y / w, z / w)
+    if (x == zero) & (y == zero) & (z == zero):
+        nan = like(w, np.nan)
+        return (nan, nan, nan)
+    inf = like(w, np.inf)
+    sg = -like(w, 1.0) if E.canonical_flip(q) else like(w, 1.0)
+    return (
+        zero if x == zero else sg * np.copysign(inf, x),
+        zero if y == zero else sg * np.copysign(inf, y),
+        zero if z == zero else sg * np.copysign(inf, z),
+    )
+
+
+@element
+def gibbs_quat(g):
+    """(1, g) / sqrt(1 + |g|²), for any scale of g; infinite components (a half
+    turn) give (0, the unit direction of the infinite components)."""
+    one = like(g[0], 1.0)
+    zero = like(g[0], 0.0)
+    if np.isinf(g[0]) | np.isinf(g[1]) | np.isinf(g[2]):
+        if np.isnan(g[0]) | np.isnan(g[1]) | np.isnan(g[2]):
+            nan = like(g[0], np.nan)
+            return (nan, nan, nan, nan)
+        return E.qnormalize((
+            zero,
+            np.copysign(one, g[0]) if np.isinf(g[0]) else zero,
+            np.copysign(one, g[1]) if np.isinf(g[1]) else zero,
+            np.copysign(one, g[2]) if np.isinf(g[2]) else zero,
+        ))  # fmt: skip
+    return E.qnormalize((one, g[0], g[1], g[2]))
+
+
+@inline
+def _as_mrp_plain(i, args):
+    q, out = args
+    p, n2 = qmrp_raw(E.load4(q, i))
+    E.store3(out, i, p)
+    return E.far_scale(n2)
+
+
+# on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
+_as_mrp = E.FarRows(_as_mrp_plain, E.redo(E.store3, qmrp, "as_mrp"), "as_mrp")
+
+
+@rowloop
+def _from_mrp(p, out):
+    for i in prange(p.shape[0]):
+        E.store4(out, i, mrp_quat(E.load3(p, i)))
+
+
+@rowloop
+def _as_gibbs(q, out):
+    for i in prange(q.shape[0]):
+        E.store3(out, i, qgibbs(E.load4(q, i)))
+
+
+@rowloop
+def _from_gibbs(g, out):
+    for i in prange(g.shape[0]):
+        E.store4(out, i, gibbs_quat(E.load3(g, i)))
+
+
+def as_mrp(q, out=None):
+    """Modified Rodrigues parameters tan(θ/4)·axis, as scipy's ``Rotation.as_mrp``.
+
+    The shortest of the two MRPs of each rotation (θ ≤ π, so |p| ≤ 1): the
+    sign of `q` is chosen with w ≥ 0 first. Any non-zero scale of `q`; a zero
+    quaternion gives nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    out : ndarray, optional
+        Result array of shape ``(..., 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_mrp(qa.from_rotvec([0, 0, np.pi])), 12)  # half turn: |p| = 1
+    array([0., 0., 1.])
+    >>> np.round(qa.as_mrp([0, 0, 0, -2]), 12) + 0.0  # any scale, either sign
+    array([ 0.,  0., -1.])
+    """
+    return elementwise(_as_mrp, [(q, "q", Q)], [V], out)
+
+
+def from_mrp(p, out=None):
+    """Unit quaternions of modified Rodrigues parameters, as scipy's ``Rotation.from_mrp``.
+
+    q = ((1 − |p|²), 2p) / (1 + |p|²); |p| > 1 (the longer of the two MRPs of
+    a rotation) gives w < 0, as in scipy (the same rotation).
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> qa.from_mrp([0, 0, 1])  # a half turn about z
+    array([0., 0., 0., 1.])
+    >>> np.allclose(qa.as_mrp(qa.from_mrp([0.1, -0.2, 0.3])), [0.1, -0.2, 0.3])
+    True
+    """
+    return elementwise(_from_mrp, [(p, "p", V)], [Q], out)
+
+
+def as_gibbs(q, out=None):
+    """Gibbs (Rodrigues) vectors g = u/w = tan(θ/2)·axis.
+
+    The same for q and −q and any non-zero scale. A half turn (w = 0) gives
+    inf along the axis (signed as the canonical quaternion, 0 for zero
+    components of the axis); a zero quaternion gives nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    out : ndarray, optional
+        Result array of shape ``(..., 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_gibbs(qa.from_rotvec([0, np.pi / 2, 0])), 12)  # tan(45°) = 1
+    array([0., 1., 0.])
+    >>> qa.as_gibbs([0, 0, -1, 0])
+    array([ 0., inf,  0.])
+    """
+    return elementwise(_as_gibbs, [(q, "q", Q)], [V], out)
+
+
+def from_gibbs(g, out=None):
+    """Unit quaternions (1, g)/sqrt(1 + |g|²) of Gibbs vectors, so w ≥ 0.
+
+    Any finite scale of g; infinite components give the half turn (w = 0)
+    about the direction of the infinite components (the inverse of
+    :func:`as_gibbs` at a half turn about an axis with ≤ 1 non-zero
+    component, or with all its components infinite).
+
+    Parameters
+    ----------
+    g : array_like, shape (..., 3)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_rotvec(qa.from_gibbs([0, 0, 1])), 12)  # tan(θ/2) = 1: θ = 90°
+    array([0.        , 0.        , 1.57079633])
+    >>> qa.from_gibbs([np.inf, 0, 0])
+    array([0., 1., 0., 0.])
+    """
+    return elementwise(_from_gibbs, [(g, "g", V)], [Q], out)

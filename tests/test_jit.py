@@ -1,0 +1,110 @@
+"""quatarray._jit: the serial/parallel choice of the row loops."""
+
+import os
+import threading
+
+import numpy as np
+import pytest
+
+from quatarray import _jit
+
+
+def _probe():
+    """A RowLoop-like object whose two variants report which one ran."""
+    calls = []
+
+    class Probe(_jit.RowLoop):
+        def __init__(self):
+            self.rows = 0
+            self.serial = lambda a: calls.append(("serial", threading.get_ident()))
+            self.parallel = lambda a: calls.append(("parallel", threading.get_ident()))
+
+    return Probe(), calls
+
+
+def test_variant_follows_size_and_context():
+    loop, calls = _probe()
+    small, large = np.zeros((1, 4)), np.zeros((_jit.PARALLEL_MIN_ROWS, 4))
+    loop(small)
+    loop(large)
+    with _jit.serial():
+        loop(large)
+        with _jit.variant("parallel"):
+            loop(small)
+        loop(large)
+    loop(large)
+    assert [c[0] for c in calls] == ["serial", "parallel", "serial", "parallel", "serial", "parallel"]
+    with pytest.raises(ValueError, match="name"):
+        with _jit.variant("fast"):
+            pass
+
+
+def test_serial_in_one_thread_leaves_others_parallel():
+    # issue 15: dask's serial tasks rewrote a process-wide threshold, so every
+    # other thread's calls went serial meanwhile
+    loop, calls = _probe()
+    large = np.zeros((_jit.PARALLEL_MIN_ROWS, 4))
+    inside, done = threading.Event(), threading.Event()
+
+    def task():
+        with _jit.serial():
+            loop(large)
+            inside.set()
+            done.wait(10)
+            loop(large)
+
+    t = threading.Thread(target=task)
+    t.start()
+    assert inside.wait(10)
+    loop(large)  # this thread, while the other is inside serial()
+    done.set()
+    t.join()
+    mine = threading.get_ident()
+    assert [c[0] for c in calls if c[1] == mine] == ["parallel"]
+    assert [c[0] for c in calls if c[1] != mine] == ["serial", "serial"]
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="no parallel variant without the JIT")
+def test_serial_thread_beside_a_large_parallel_call():
+    # the same with real kernels: a large call in this thread takes the parallel
+    # variant (numba's parallel dispatcher compiles for it) while another thread
+    # sits inside serial()
+    from quatarray import algebra
+
+    q = np.random.default_rng(0).normal(size=(_jit.PARALLEL_MIN_ROWS, 4))
+    ran = []
+    for name in ("serial", "parallel"):
+        d = getattr(algebra._multiply, name)
+        orig = d
+
+        class Spy:
+            def __init__(self, d, name):
+                self.d, self.name = d, name
+
+            def __call__(self, *a):
+                ran.append((self.name, threading.get_ident()))
+                return self.d(*a)
+
+        setattr(algebra._multiply, name, Spy(orig, name))
+    try:
+        inside, done = threading.Event(), threading.Event()
+
+        def task():
+            with _jit.serial():
+                algebra.multiply(q, q)
+                inside.set()
+                done.wait(60)
+
+        t = threading.Thread(target=task)
+        t.start()
+        assert inside.wait(120)
+        got = algebra.multiply(q, q)
+        done.set()
+        t.join()
+    finally:
+        algebra._multiply.serial = algebra._multiply.serial.d
+        algebra._multiply.parallel = algebra._multiply.parallel.d
+    mine = threading.get_ident()
+    assert ("parallel", mine) in ran and ("serial", mine) not in ran
+    assert [r[0] for r in ran if r[1] != mine] == ["serial"]
+    np.testing.assert_allclose(got[:5], [algebra.multiply(a, a) for a in q[:5]])
