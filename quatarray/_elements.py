@@ -15,7 +15,7 @@ from numba import types
 from numba.extending import overload
 
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
-from ._jit import CACHE, element, exponent_scales, flat_load, flat_rows, flat_store, inline, like, prange, RowLoop, rowloop, specialise
+from ._jit import CACHE, RowLoop, element, exponent_scales, inline, like, prange, rowloop, specialise
 from ._trig import atan2
 
 
@@ -109,6 +109,9 @@ def flags_max(flags, m):
     for j in range(m):
         f = max(f, flags[j])
     return f
+
+
+_PLAIN = _SCALED = _STORE = _FORMULA = None  # rebound in each copy (see FarRows, redo)
 
 
 def _far_rows(*args):

@@ -58,7 +58,7 @@ def _vsub(a, b):
 
 
 @inline
-def _vscale(a, k):
+def vscale(a, k):
     return (a[0] * k, a[1] * k, a[2] * k)
 
 
@@ -175,7 +175,7 @@ def log_arc(a, b):
     zero = like(un, 0.0)
     f = like(un, 2.0) * th / un if un > zero else like(un, 2.0)
     nd = np.sqrt(d[0] * d[0] + un * un)
-    return _vscale(dv, f), like(un, 4.0) * th * th, un / nd, d[0] / nd
+    return vscale(dv, f), like(un, 4.0) * th * th, un / nd, d[0] / nd
 
 
 @inline
@@ -188,8 +188,8 @@ def slerp_rates(a, wa, b, wb, w, dw):
     ki = inv_coeff(n2, s_, c_)
     wd = _vsub(wb, unrotate(qmul(qconj(a), b), wa))  # Ω_D
     rd = jac_inv(r, ki, wd)
-    y = _vscale(r, w)
-    yd = _vadd(_vscale(r, dw), _vscale(rd, w))
+    y = vscale(r, w)
+    yd = _vadd(vscale(r, dw), vscale(rd, w))
     ny2 = w * w * n2
     hs, hc = sincos(like(w, 0.5) * abs(w) * np.sqrt(n2))  # half the angle |y| = |w|·|r|
     e = qexp_half(y, ny2, hs, hc)
@@ -222,7 +222,7 @@ def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     gd = _vadd(_vsub(gb, unrotate(d, ga)), cross(wd, z))  # Γ_D
     j1, j2 = acc_coeffs(n2, s_, c_)
     rdd = jac_inv(r, ki, _vsub(gd, jac_dot(r, rd, j1, j2, k2)))
-    ydd = _vadd(_vadd(_vscale(r, ddw), _vscale(rd, like(w, 2.0) * dw)), _vscale(rdd, w))
+    ydd = _vadd(_vadd(vscale(r, ddw), vscale(rd, like(w, 2.0) * dw)), vscale(rdd, w))
     yj1, yj2 = acc_coeffs(ny2, hs, hc)
     gy = _vadd(jac(y, ky1, ky2, ydd), jac_dot(y, yd, yj1, yj2, ky2))
     za = unrotate(e, wa)

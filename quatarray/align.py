@@ -85,35 +85,9 @@ def shortest_arc(b, a):
 
 
 @element
-def jacobi_rotate(m, p, r):
-    """One Jacobi rotation zeroing entry (p, r) of the symmetric 4×4 matrix in
-    ``m[:16]`` (row-major), applied to it (JᵀMJ) and to the eigenvector
-    columns in ``m[16:]`` (VJ), in place."""
-    apr = m[4 * p + r]
-    if apr == 0.0:
-        return
-    tau = (m[5 * r] - m[5 * p]) / (2.0 * apr)
-    if abs(tau) > 1e150:
-        t = 0.5 / tau
-    else:
-        t = 1.0 / (abs(tau) + np.sqrt(1.0 + tau * tau))
-        t = -t if tau < 0.0 else t
-    c = 1.0 / np.sqrt(1.0 + t * t)
-    s = t * c
-    for k in range(4):  # columns p, r of M and of V
-        for base in (0, 16):
-            x, y = m[base + 4 * k + p], m[base + 4 * k + r]
-            m[base + 4 * k + p] = c * x - s * y
-            m[base + 4 * k + r] = s * x + c * y
-    for k in range(4):  # rows p, r of M
-        x, y = m[4 * p + k], m[4 * r + k]
-        m[4 * p + k] = c * x - s * y
-        m[4 * r + k] = s * x + c * y
-
-
-@element
-def davenport(bm):
-    """Optimal rotation for B = Σ w a bᵀ (row-major 9-tuple, float64).
+def davenport(bm, m):
+    """Optimal rotation for B = Σ w a bᵀ (row-major 9-tuple, float64); `m` a
+    scratch array of 32 float64 (the caller's, so that no kernel allocates).
 
     Returns ``(q, lam, zeta, kappa, gmin)``: q the unit eigenvector of the
     largest eigenvalue `lam` of Davenport's K (Horn's form, rotating b onto
@@ -136,14 +110,13 @@ def davenport(bm):
     # scaled to a largest entry of 1 (no overflow or underflow in the rotations)
     c = 0.0
     for x in k:
-        c = max(c, abs(x))
+        c = abs(x) if abs(x) > c else c
     if not (c > 0.0 and c < np.inf):
         c = 1.0
-    m = np.zeros(32)  # K, then the eigenvectors V (columns)
+    # m: K, then the eigenvectors V (columns), from the identity
     for i in range(16):
         m[i] = k[i] / c
-    for i in range(4):
-        m[16 + 5 * i] = 1.0
+        m[16 + i] = 1.0 if i % 5 == 0 else 0.0
     for _ in range(30):
         off = 0.0
         for i in range(3):
@@ -151,9 +124,30 @@ def davenport(bm):
                 off += m[4 * i + j] * m[4 * i + j]
         if not off > 1e-40:  # converged (quadratically), or nan
             break
-        for i in range(3):
-            for j in range(i + 1, 4):
-                jacobi_rotate(m, i, j)
+        for p in range(3):
+            for r in range(p + 1, 4):
+                # one Jacobi rotation zeroing entry (p, r) of K (row-major in m[:16]),
+                # applied to it (JᵀKJ) and to the eigenvector columns in m[16:] (VJ)
+                apr = m[4 * p + r]
+                if apr == 0.0:
+                    continue
+                tau = (m[5 * r] - m[5 * p]) / (2.0 * apr)
+                if abs(tau) > 1e150:
+                    t = 0.5 / tau
+                else:
+                    t = 1.0 / (abs(tau) + np.sqrt(1.0 + tau * tau))
+                    t = -t if tau < 0.0 else t
+                cs = 1.0 / np.sqrt(1.0 + t * t)
+                sn = t * cs
+                for k in range(8):  # columns p, r of K (k < 4) and of V
+                    base = 16 * (k // 4) + 4 * (k % 4)
+                    x, y = m[base + p], m[base + r]
+                    m[base + p] = cs * x - sn * y
+                    m[base + r] = sn * x + cs * y
+                for k in range(4):  # rows p, r of K
+                    x, y = m[4 * p + k], m[4 * r + k]
+                    m[4 * p + k] = cs * x - sn * y
+                    m[4 * r + k] = sn * x + cs * y
     top = 0
     for i in range(1, 4):
         if m[5 * i] > m[5 * top]:
@@ -180,24 +174,6 @@ def davenport(bm):
     f = -1.0 if m[16 + 4 * big + top] < 0.0 else 1.0
     q = (f * m[16 + top], f * m[20 + top], f * m[24 + top], f * m[28 + top])
     return q, lam, zeta, kappa, gmin
-
-
-@element
-def sensitivity(bm, zeta, kappa, wmean):
-    """scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) (see :func:`davenport`)."""
-    f = wmean / zeta
-    b = bm
-    return (
-        f * (kappa + b[0] * b[0] + b[1] * b[1] + b[2] * b[2]),
-        f * (b[0] * b[3] + b[1] * b[4] + b[2] * b[5]),
-        f * (b[0] * b[6] + b[1] * b[7] + b[2] * b[8]),
-        f * (b[3] * b[0] + b[4] * b[1] + b[5] * b[2]),
-        f * (kappa + b[3] * b[3] + b[4] * b[4] + b[5] * b[5]),
-        f * (b[3] * b[6] + b[4] * b[7] + b[5] * b[8]),
-        f * (b[6] * b[0] + b[7] * b[1] + b[8] * b[2]),
-        f * (b[6] * b[3] + b[7] * b[4] + b[8] * b[5]),
-        f * (kappa + b[6] * b[6] + b[7] * b[7] + b[8] * b[8]),
-    )
 
 
 @element
@@ -251,54 +227,81 @@ def fixed_fit(a, b, w, p, k):
 # batched loops
 
 
+ALIGN_BLOCK = 256  # problems per block of _align (one scratch row each)
+
+
 @rowloop
-def _align(a, b, w, q_out, rssd_out, sens_out, flags):
-    # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); sens_out (P, 3, 3)
+def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
+    # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); aux_out (P, 12): B (row-major),
+    # ζ, κ and mean(w) for the sensitivity matrix; scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
     n = a.shape[1]
-    for p in prange(a.shape[0]):
-        bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        ssq = 0.0
-        wsum = 0.0
-        ninf = 0
-        kinf = 0
-        for i in range(n):
-            ai, bi, wi = load_pair(a, b, w, p, i)
-            if wi == np.inf:
-                if ninf == 0:
-                    kinf = i
-                ninf += 1
-            wa = (wi * ai[0], wi * ai[1], wi * ai[2])
-            bm = (
-                bm[0] + wa[0] * bi[0], bm[1] + wa[0] * bi[1], bm[2] + wa[0] * bi[2],
-                bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
-                bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
-            )  # fmt: skip
-            ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2] + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
-            wsum += wi
-        nan = np.nan
-        flag = 0
-        sens = (nan, nan, nan, nan, nan, nan, nan, nan, nan)
-        if ninf > 1:
-            flag = _SEVERAL_INF
-            q = (nan, nan, nan, nan)
-            rssd = nan
-        elif ninf == 1 or n == 1:
-            ak, bk, wk = load_pair(a, b, w, p, kinf)
-            if E.vnorm(ak) == 0.0 or E.vnorm(bk) == 0.0:
-                flag = _ZERO_PRIMARY
-            flag |= _FIXED
-            q, rssd = fixed_fit(a, b, w, p, kinf)
-        else:
-            q, lam, zeta, kappa, gmin = davenport(bm)
-            rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
-            if gmin < 1e-16 * (lam - gmin):
-                flag = _NOT_UNIQUE
-            sens = sensitivity(bm, zeta, kappa, wsum / n)
-        flags[p] = flag
+    m = a.shape[0]
+    for blk in prange(scratch.shape[0]):
+        for p in range(blk * ALIGN_BLOCK, min(m, (blk + 1) * ALIGN_BLOCK)):
+            bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            ssq = 0.0
+            wsum = 0.0
+            ninf = 0
+            kinf = 0
+            for i in range(n):
+                ai, bi, wi = load_pair(a, b, w, p, i)
+                if wi == np.inf:
+                    if ninf == 0:
+                        kinf = i
+                    ninf += 1
+                wa = (wi * ai[0], wi * ai[1], wi * ai[2])
+                bm = (
+                    bm[0] + wa[0] * bi[0], bm[1] + wa[0] * bi[1], bm[2] + wa[0] * bi[2],
+                    bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
+                    bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
+                )  # fmt: skip
+                ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2]
+                             + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
+                wsum += wi
+            nan = np.nan
+            flag = 0
+            aux = (nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
+            if ninf > 1:
+                flag = _SEVERAL_INF
+                q = (nan, nan, nan, nan)
+                rssd = nan
+            elif ninf == 1 or n == 1:  # solved by _align_fixed (compiled only when some problem needs it)
+                ak, bk, wk = load_pair(a, b, w, p, kinf)
+                a2 = ak[0] * ak[0] + ak[1] * ak[1] + ak[2] * ak[2]  # zero exactly when |a_k| is
+                if a2 == 0.0 or bk[0] * bk[0] + bk[1] * bk[1] + bk[2] * bk[2] == 0.0:
+                    flag = _ZERO_PRIMARY
+                flag |= _FIXED
+                q = (nan, nan, nan, nan)
+                rssd = nan
+            else:
+                q, lam, zeta, kappa, gmin = davenport(bm, scratch[blk])
+                rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
+                if gmin < 1e-16 * (lam - gmin):
+                    flag = _NOT_UNIQUE
+                # what scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) needs (see davenport;
+                # formed by the front end only when asked for)
+                aux = bm + (zeta, kappa, wsum / n)
+            flags[p] = flag
+            E.store4(q_out, p, q)
+            rssd_out[p] = rssd
+            for j in range(12):
+                aux_out[p, j] = aux[j]
+
+
+@rowloop
+def _align_fixed(problems, a, b, w, q_out, rssd_out):
+    """Problems with one infinite weight or one pair (``_FIXED`` from :func:`_align`),
+    by scipy's primary-pair path (:func:`fixed_fit`)."""
+    n = a.shape[1]
+    for i in prange(problems.shape[0]):
+        p = problems[i]
+        k = 0
+        for j in range(n - 1, -1, -1):  # the primary pair: the (only) infinite weight, else pair 0
+            if w[p, j] == np.inf:
+                k = j
+        q, rssd = fixed_fit(a, b, w, p, k)
         E.store4(q_out, p, q)
         rssd_out[p] = rssd
-        for j in range(9):
-            sens_out[p, j // 3, j % 3] = sens[j]
 
 
 @rowloop
@@ -413,11 +416,14 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
 
     def run(a2, b2, w2, q2, r2, s2):
         flags = np.zeros(a2.shape[0], np.uint8)
-        _align(a2, b2, w2, q2, r2, s2, flags)
+        _align(a2, b2, w2, q2, r2, s2, flags, np.empty((-(-a2.shape[0] // ALIGN_BLOCK), 32)))
+        fixed = np.flatnonzero((flags & (_FIXED | _ZERO_PRIMARY)) == _FIXED)
+        if fixed.size:
+            _align_fixed(fixed, a2, b2, w2, q2, r2)
         status.append(flags)
 
     inputs = [(av, "a", core), (bv, "b", core), (w, "weights", (n,))]
-    q, rssd, sens = elementwise(run, inputs, [Q, (), (3, 3)], result=dtype)
+    q, rssd, aux = elementwise(run, inputs, [Q, (), (12,)], result=dtype)
     flags = status[0]
     lead = q.shape[:-1]
     for bit, text in (
@@ -438,7 +444,13 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
             UserWarning,
             stacklevel=2,
         )
-    return (q, rssd, sens) if return_sensitivity else (q, rssd)
+    if not return_sensitivity:
+        return q, rssd
+    # scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ)
+    bm = aux[..., :9].reshape(aux.shape[:-1] + (3, 3))
+    f = (aux[..., 11] / aux[..., 9])[..., None, None]
+    sens = f * (aux[..., 10, None, None] * np.eye(3, dtype=aux.dtype) + bm @ np.swapaxes(bm, -1, -2))
+    return q, rssd, sens
 
 
 def rotation_between(u, v, out=None):

@@ -291,6 +291,16 @@ def cases(n, seed=0):
                                                                          order=order))
         c.add("scipy", lambda order=order: RotationSpline(times, rkeys)(new_times, order))
 
+    # --- whole clips (issue 17): 30 joints, n / 30 frames; items are joint-samples
+    clip = _clip(max(n // 30, 8), 30, rng)
+    c = case(f"clip world ({clip.frames} frames x 30 joints)", items=clip.frames * 30,
+             note="scipy: numpy FK, scipy rotations, one joint at a time")
+    c.add("quatarray", clip.world)
+    c.add("scipy", lambda: _numpy_world(clip, Rotation))
+    c = case(f"clip resample 2x ({clip.frames} frames x 30 joints)", items=(2 * clip.frames - 1) * 30,
+             note="Bézier, every joint; out: joint-samples")
+    c.add("quatarray", lambda: clip.resample(rate=2 / clip.frame_time))
+
     # --- conversions
     c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p))
     c.add("scipy", lambda: rp.as_matrix())
@@ -350,6 +360,32 @@ def cases(n, seed=0):
     c = case("from_mrp", nbytes=56, qa_name="from_mrp", qa_fn=lambda f: lambda: f(mrp))
     c.add("scipy", lambda: Rotation.from_mrp(mrp))
     return out
+
+
+def _clip(frames, joints, rng):
+    """A smooth random clip: a tree of `joints` joints, ZXY channels, root positions."""
+    import quatarray as qa
+    from quatarray.skeleton import Clip
+
+    parents = [-1] + [int(rng.integers(max(0, j - 4), j)) for j in range(1, joints)]
+    chans = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + \
+        [("Zrotation", "Xrotation", "Yrotation")] * (joints - 1)
+    rot = qa.from_euler("ZXY", np.cumsum(rng.normal(0, 2, (frames, joints, 3)), axis=0), degrees=True)
+    off = rng.standard_normal((joints, 3)) * 10
+    trans = np.broadcast_to(off, (frames, joints, 3)).copy()
+    trans[:, 0] = np.cumsum(rng.normal(0, 0.1, (frames, 3)), axis=0)
+    return Clip([f"j{j}" for j in range(joints)], parents, off, chans, rot, trans, 1 / 100)
+
+
+def _numpy_world(clip, Rotation):
+    """Forward kinematics in numpy + scipy: one joint at a time, all frames at once."""
+    rw, pw = [], []
+    for j in range(len(clip.joints)):
+        r = Rotation.from_quat(clip.rotations[:, j], scalar_first=True)
+        p = clip.parents[j]
+        rw.append(r if p < 0 else rw[p] * r)
+        pw.append(clip.translations[:, j] if p < 0 else pw[p] + rw[p].apply(clip.translations[:, j]))
+    return np.stack([r.as_quat(scalar_first=True) for r in rw], axis=1), np.stack(pw, axis=1)
 
 
 def _scipy_assume_valid(Rotation, m):

@@ -30,6 +30,7 @@ import sys
 import numpy as np
 
 from . import trajectory as T
+from .algebra import normalize
 from .io import DEFAULT_CHUNK, Cleaner, DataError, UsageError, check_output, concat, open_stream, open_writer
 
 TITLES = {"trans": "translation part", "rot": "rotation angle", "full": "full transformation"}
@@ -67,8 +68,6 @@ def pose_array(path, name=None):
 
 def _poses_of_rows(rows, name, row0=0):
     """Poses from rows of a pose array (checked: finite, non-zero quaternions)."""
-    import quatarray as qa
-
     rows = np.asarray(rows, dtype=np.float64)
     k = rows.shape[1] - 7
     bad = ~np.all(np.isfinite(rows), axis=1) | ~np.any(rows[:, k + 3:] != 0, axis=1)
@@ -76,7 +75,7 @@ def _poses_of_rows(rows, name, row0=0):
         r = int(np.flatnonzero(bad)[0])
         raise DataError(f"{name}: row {row0 + r}: not a pose (a non-finite number or a zero quaternion)")
     t = rows[:, 0].copy() if k else None
-    return T.Poses(t, np.ascontiguousarray(rows[:, k:k + 3]), qa.normalize(np.ascontiguousarray(rows[:, k + 3:])))
+    return T.Poses(t, np.ascontiguousarray(rows[:, k:k + 3]), normalize(np.ascontiguousarray(rows[:, k + 3:])))
 
 
 def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", err=None):

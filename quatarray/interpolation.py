@@ -24,11 +24,7 @@ from . import _elements as E
 from ._access import load1, load1_ir, load4, load4_ir, store4, store4_ir
 from ._jit import kernel, like, prange, rowloop
 from ._slerp import bezier4, bisect4, controls4, double4, lerp4, nlerp4, slerp4, squad4
-from ._validate import (as_times, check_times, elementwise, first_not_increasing, key_array, key_times,
-                        not_increasing, scan)
-
-# the key-time rules, by the names quatarray.kinematics imports them
-_check_times, _first_not_increasing, _not_increasing = check_times, first_not_increasing, not_increasing
+from ._validate import as_times, elementwise, key_array, key_times, scan
 
 Q = (4,)
 # rows per block of a row loop: prange runs over blocks and the plain inner
@@ -320,7 +316,7 @@ def bisect(p, q, out=None):
     return elementwise(_flat(_bisect), [(p, "p", Q), (q, "q", Q)], [Q], out)
 
 
-def _tangent_scales(h):
+def tangent_scales(h):
     """Outgoing/incoming tangent factors 2hₙ/(hₙ₋₁+hₙ), 2hₙ₋₁/(hₙ₋₁+hₙ); 1 at the ends.
 
     Factors within 1e-12 of 1 (evenly spaced times up to rounding) are set to
@@ -383,7 +379,7 @@ def controls_bezier(q, t=None):
     if t is None:
         f_out = f_in = np.ones(k)
     else:
-        f_out, f_in = _tangent_scales(np.diff(t))
+        f_out, f_in = tangent_scales(np.diff(t))
     a = np.empty(q.shape, q.dtype)
     b = np.empty(q.shape, q.dtype)
     _bezier_controls(np.ascontiguousarray(q).reshape(-1), f_out.astype(q.dtype), f_in.astype(q.dtype),

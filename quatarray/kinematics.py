@@ -6,18 +6,25 @@ constant rate and applies its exact exponential, so a constant angular
 velocity is integrated without error (to rounding), whatever the step.
 
 The integration is a scan (each orientation is the one before times the
-step's exponential), so in one thread it is bounded by the latency of the
-dependent chain of quaternion products, about four multiply-adds deep per
-step (about 5 ns a step measured on the 2-core CI machine). The step
-exponentials (a square root, a sincos) are a separate vectorised pass
-before it (about 10 ns a step there).
+step's exponential). What bounds it (10⁶ steps, float64, one thread of the
+2-core CI machine, CPU time): the step exponentials (a square root, a
+sincos: a separate vectorised pass) take about 10 ns a step; one chain of
+products is bound by its latency (each product waits for the one before,
+four multiply-adds deep): about 15 ns a step; the scan therefore runs four
+chains interleaved (:func:`_scan`), which the core overlaps: about 6 ns a
+step, near the cost of one pass over the output (about 5-8 ns a step for
+reading and writing 32 bytes). So a block takes ``SCAN_TILE`` steps at a
+time, exponentials then scan, while the tile is in cache (a block of 5·10⁵
+steps 9.8 -> 8.1 ms). The rest of a call (the steps from the times and their
+check, the output's allocation: about 5 ns a step) runs once, before the
+threads.
 Streams of at least ``QUATARRAY_PARALLEL_MIN_ROWS`` samples are cut into one
 block per numba thread, run in Python threads (the kernels release the GIL;
 no numba parallel loop, whose compilation would cost seconds of a cold first
-call): each block's exponentials and its local products from the identity
-(block 0 from q0), then the block ends are carried in turn and multiplied
-into the later blocks by :func:`quatarray.multiply` (multi-threaded):
-see :func:`_integrate`.
+call): pass 1 gives each block's exponentials and its local products from
+the identity (block 0 from q0); the block ends are carried in turn (a few
+products); pass 2 multiplies the rows of the later blocks by their carry,
+every thread taking a share of every block: see :func:`_integrate`.
 """
 
 import threading
@@ -29,10 +36,9 @@ from . import _elements as E
 from . import _jit
 from ._jit import inline, kernel, like, prange, specialise
 from ._trig import sincos_limit
-from ._validate import as_float, as_times, check_core, result_dtype
+from ._validate import as_float, as_times, check_core, check_times, first_not_increasing, not_increasing, result_dtype
 from .algebra import multiply as qa_multiply
 from .conversions import half_sinc, rotvec_quat
-from .interpolation import _check_times, _first_not_increasing, _not_increasing
 
 FRAMES = ("space", "body")
 HOLDS = ("mean", "start")
@@ -84,55 +90,140 @@ def _exponentials_far(omega, h, mean, out):
             E.store4(out, k + 1, (np.cos(half), s * v[0], s * v[1], s * v[2]))
 
 
+@inline
+def scan_step(out, k, acc, body, unit):
+    """out[k] = e_k ⊗ acc (space) or acc ⊗ e_k (body), e_k = out[k] on entry, in float64
+    (``np.float64``: numba's ``float()`` keeps float32); with `unit` (float32 rows) e_k
+    is normalised in float64 first, so the norm does not drift by the float32
+    rounding of the steps. Returns the new acc."""
+    f = E.load4(out, k)
+    e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+    if unit:
+        e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
+    acc = E.qmul(acc, e) if body else E.qmul(e, acc)
+    E.store4(out, k, acc)
+    return acc
+
+
+CHAINS = 4  # independent product chains per scan (instruction-level parallelism)
+
+
 @kernel
 def _scan(out, q0, body, unit):
     """In place, out[k] = e_k ⊗ out[k−1] (space) or out[k−1] ⊗ e_k (body) from
-    out[−1] = q0: out[k] holds the step exponential e_k on entry. Carried in
-    float64 (``np.float64``: numba's ``float()`` keeps float32); with `unit`
-    (float32 rows) each e_k is normalised in float64 first, so the norm does not
-    drift by the float32 rounding of the steps."""
-    acc = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
-    for k in range(out.shape[0]):
-        f = E.load4(out, k)
-        e = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
-        if unit:
-            e = E.qscale(e, 1.0 / np.sqrt(E.qdot(e, e)))
-        acc = E.qmul(acc, e) if body else E.qmul(e, acc)
-        E.store4(out, k, acc)
+    out[−1] = q0: out[k] holds the step exponential e_k on entry. Returns the last
+    product in float64 (the carry of a scan continued in another call).
+
+    One chain of products is bound by its latency (each product waits for the one
+    before: four multiply-adds deep). So the rows are cut into ``CHAINS`` parts
+    whose local products (the first from q0, the others from the identity) run
+    interleaved in one loop, as independent chains the core overlaps; then each
+    part but the first is multiplied by the end of the part before it (a loop free
+    of the chain)."""
+    n = out.shape[0]
+    m = n // CHAINS if n >= 4 * CHAINS else 0  # short scans: one chain
+    one = (1.0, 0.0, 0.0, 0.0)
+    a0 = (np.float64(q0[0]), np.float64(q0[1]), np.float64(q0[2]), np.float64(q0[3]))
+    a1 = a2 = one
+    a3 = a0 if m == 0 else one  # a short scan is the last part's loop alone, from q0
+    for k in range(m):
+        a0 = scan_step(out, k, a0, body, unit)
+        a1 = scan_step(out, m + k, a1, body, unit)
+        a2 = scan_step(out, 2 * m + k, a2, body, unit)
+        a3 = scan_step(out, 3 * m + k, a3, body, unit)
+    for k in range(4 * m, n):
+        a3 = scan_step(out, k, a3, body, unit)
+    if m == 0:
+        return a3
+    carry = a0  # the end of the part before, in float64
+    last = a0
+    for c in range(1, CHAINS):
+        # the last local product is still in float64 (a3 for the last part)
+        hi = n if c == CHAINS - 1 else (c + 1) * m
+        for k in range(c * m, hi - 1):
+            f = E.load4(out, k)
+            local = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+            E.store4(out, k, E.qmul(carry, local) if body else E.qmul(local, carry))
+        end = a1 if c == 1 else (a2 if c == 2 else a3)
+        last = E.qmul(carry, end) if body else E.qmul(end, carry)
+        E.store4(out, hi - 1, last)
+        carry = last
+    return last
+
+
+SCAN_TILE = 16384  # steps whose exponentials are scanned while they are in cache (512 KB of float64 rows)
 
 
 def _block(w, h, out, q0, mean, body):
-    """Rows [1, n) of `out` for steps [0, n − 1) of the block: exponentials, then the scan."""
-    if _EXPONENTIALS[mean](w, h, out):
-        _exponentials_far(w, h, mean, out)
-    _scan(out[1:], q0, body, out.dtype == np.float32)
+    """Rows [1, n) of `out` for steps [0, n − 1) of the block, ``SCAN_TILE`` steps at a
+    time: exponentials, then the scan, carried from tile to tile in float64."""
+    steps = out.shape[0] - 1
+    unit = out.dtype == np.float32
+    acc = np.asarray(q0, np.float64)
+    for a in range(0, steps, SCAN_TILE):
+        c = min(a + SCAN_TILE, steps)
+        o = out[a : c + 1]
+        if _EXPONENTIALS[mean](w[a : c + 1], h[a:c], o):
+            _exponentials_far(w[a : c + 1], h[a:c], mean, o)
+        acc = np.array(_scan(o[1:], acc, body, unit))
+
+
+@kernel
+def _carry_in(rows, carry, body):
+    """In place, rows[k] = carry ⊗ rows[k] (body) or rows[k] ⊗ carry (space), in float64."""
+    c = (np.float64(carry[0]), np.float64(carry[1]), np.float64(carry[2]), np.float64(carry[3]))
+    for k in range(rows.shape[0]):
+        f = E.load4(rows, k)
+        x = (np.float64(f[0]), np.float64(f[1]), np.float64(f[2]), np.float64(f[3]))
+        E.store4(rows, k, E.qmul(c, x) if body else E.qmul(x, c))
+
+
+def _threads(jobs):
+    """Run ``fn(*args)`` for each (fn, args) of `jobs`: the first in this thread, the
+    others in Python threads (the kernels release the GIL)."""
+    threads = [threading.Thread(target=fn, args=args) for fn, args in jobs[1:]]
+    for th in threads:
+        th.start()
+    jobs[0][0](*jobs[0][1])
+    for th in threads:
+        th.join()
 
 
 def _integrate(w, h, out, q0, mean, body):
-    """The whole stream into `out` (row 0 = q0): one block, or, for long streams, one
-    block per thread (Python threads: the kernels release the GIL), each from the
-    identity but the first; then the block ends are carried and multiplied into the
-    later blocks (:func:`quatarray.multiply`, itself multi-threaded)."""
+    """The whole stream into `out` (row 0 = q0): one block, or, for long streams, a
+    blocked scan in two parallel passes. Pass 1: one block per thread (exponentials
+    and local products, each block from the identity but the first). Then each
+    block's carry (the true end of the block before it: a few products). Pass 2: the
+    rows of the later blocks are multiplied by their block's carry, every thread
+    taking an equal share of every block."""
     out[0] = q0
     steps = out.shape[0] - 1
     nb = _blocks(out.shape[0])
     size = -(-steps // nb)
     cuts = [min(b * size, steps) for b in range(nb + 1)]
     one = np.array([1.0, 0.0, 0.0, 0.0])
-    jobs = [(w[a:c + 1], h[a:c], out[a:c + 1], q0 if b == 0 else one, mean, body)
-            for b, (a, c) in enumerate(zip(cuts[:-1], cuts[1:]))]
-    threads = [threading.Thread(target=_block, args=job) for job in jobs[1:]]
-    for th in threads:
-        th.start()
-    _block(*jobs[0])
-    for th in threads:
-        th.join()
-    carry = out[cuts[1]].astype(np.float64)  # where block 1 starts
-    for a, c in zip(cuts[1:-1], cuts[2:]):
-        local = out[a + 1 : c + 1]
-        cq = carry.astype(out.dtype)
-        qa_multiply(cq, local, out=local) if body else qa_multiply(local, cq, out=local)
-        carry = out[c].astype(np.float64)
+    _threads([(_block, (w[a:c + 1], h[a:c], out[a:c + 1], q0 if b == 0 else one, mean, body))
+              for b, (a, c) in enumerate(zip(cuts[:-1], cuts[1:]))])
+    if nb == 1:
+        return
+    carries = [None, out[cuts[1]].astype(np.float64)]  # block 0 ends true
+    for b in range(2, nb):  # the true end of block b − 1: its local end, carried in
+        end = out[cuts[b]].astype(np.float64)
+        carries.append(qa_multiply(carries[-1], end) if body else qa_multiply(end, carries[-1]))
+    shares = [[] for _ in range(nb)]
+    for b in range(1, nb):
+        a, c = cuts[b] + 1, cuts[b + 1] + 1
+        part = -(-(c - a) // nb)
+        for i in range(nb):
+            lo, hi = min(a + i * part, c), min(a + (i + 1) * part, c)
+            if hi > lo:
+                shares[i].append((out[lo:hi], carries[b]))
+    _threads([(_apply_shares, (sh, body)) for sh in shares if sh])
+
+
+def _apply_shares(shares, body):
+    for rows, carry in shares:
+        _carry_in(rows, carry, body)
 
 
 # --------------------------------------------------------------------------
@@ -144,14 +235,14 @@ def _steps(times, n, index0=0):
     int64 nanoseconds), or the ValueError naming the first time that is not larger than
     the one before (its index counted from `index0`)."""
     t = as_times(times, "times")
-    _check_times(t, n, "times")
-    i = _first_not_increasing(t)
+    check_times(t, n, "times")
+    i = first_not_increasing(t)
     if i is not None:
-        raise _not_increasing("times", index0 + i, t[i], t[i + 1])
+        raise not_increasing("times", index0 + i, t[i], t[i + 1])
     return np.diff(t).astype(np.float64)
 
 
-def _check_options(frame, hold):
+def check_options(frame, hold):
     if frame not in FRAMES:
         raise ValueError(f"Expected `frame` to be 'space' or 'body', got {frame!r}.")
     if hold not in HOLDS:
@@ -223,7 +314,7 @@ def integrate_angular_velocity(omega, times, q0=None, frame="space", hold="mean"
     >>> np.allclose(qa.angular_velocity(q, t), w)
     True
     """
-    _check_options(frame, hold)
+    check_options(frame, hold)
     w = check_core(as_float(omega, "omega"), "omega", (3,))
     if w.ndim != 2:
         raise ValueError(f"Expected `omega` to have shape (N, 3), got {w.shape}.")

@@ -5,7 +5,8 @@ rotation and translation of each joint relative to its parent (as BVH stores
 them), the hierarchy, and the frame times. :meth:`Clip.world` composes them
 down the hierarchy (VQS composition with s = 1) into world rotations and
 world joint positions in one numba kernel over frames × joints;
-:meth:`Clip.resample` interpolates every joint with :func:`quatarray.spline`.
+:meth:`Clip.resample` interpolates every joint as :func:`quatarray.spline` does, all
+joints in one pass over the frames (one time plan, SIMD over the joints).
 
 Read and write clips with :func:`quatarray.io.read_bvh` and
 :func:`quatarray.io.write_bvh`.
@@ -15,6 +16,10 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import prange, rowloop
+from ._validate import as_times, key_times
+from .algebra import normalize
+from ._lanes import resample_streams
+from .splines import check_method, plan_times
 
 AXES = "XYZ"
 
@@ -169,7 +174,7 @@ class Clip:
             New frames at ``times[0] + k / rate`` up to the last frame.
         times : array_like, optional
             Explicit new times (1-D, within the clip's time span).
-        method : {"bezier", "slerp", "nlerp", "squad"}
+        method : {"bezier", "slerp", "nlerp", "squad", "cubic"}
             Rotation interpolation (see :func:`quatarray.spline`; it unflips
             each joint's keys). Translations of joints with position channels
             are interpolated linearly (the others are their OFFSET).
@@ -187,10 +192,9 @@ class Clip:
         >>> clip.resample(rate=120)
         <Clip: 24 joints (5 end sites), 1816 frames at 120 fps>
         """
-        import quatarray as qa
-
         if (rate is None) == (times is None):
             raise ValueError("Expected exactly one of `rate` and `times`.")
+        check_method(method)
         t = self.times
         if rate is not None:
             rate = float(rate)
@@ -200,18 +204,21 @@ class Clip:
             nt = nt[nt <= t[-1]]
             frame_time = 1.0 / rate
         else:
-            nt = np.asarray(times, dtype=np.float64).reshape(-1)
+            nt = as_times(times, "new_times").reshape(-1)
             frame_time = float(np.median(np.diff(nt))) if nt.size > 1 else self.frame_time
         J = len(self.joints)
-        # joint-major storage: each joint's spline output is one contiguous copy;
-        # `rotations` is its (F, J, 4) view
-        rot = np.empty((J, nt.size, 4))
+        cols = [j for j in range(J) if self.orders[j]]
+        if cols and t.size < 2:
+            raise ValueError(f"Expected at least 2 frames to resample a clip, got {t.size}.")
+        # the time plan once for every joint (spline's checks and conversion)
+        t, nt = plan_times(key_times(t, t.size), nt) if cols else (t, np.asarray(nt, np.float64))
+        nt = np.ascontiguousarray(nt)
+        rot = np.empty((nt.size, J, 4))
         for j in range(J):
-            if self.orders[j]:
-                rot[j] = qa.spline(t, self.rotations[:, j], nt, method=method)
-            else:  # no rotation channels: the clip's constant rotation (the identity)
-                rot[j] = qa.normalize(self.rotations[0, j])
-        rot = rot.transpose(1, 0, 2)
+            if not self.orders[j]:  # no rotation channels: the clip's constant rotation (the identity)
+                rot[:, j] = normalize(self.rotations[0, j])
+        if cols:  # every joint as spline(t, rotations[:, j], nt, method), in one pass
+            resample_streams(t, nt, self.rotations, cols, method, rot)
         trans = np.empty((nt.size, J, 3))
         trans[:] = self.offsets
         pj = self.positional()

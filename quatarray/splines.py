@@ -38,6 +38,10 @@ Internal API (for :mod:`quatarray.dask`; no leading underscore)
     :func:`spline` on planned times and unit keys (no checks).
 ``sign_summary(q, rows, ends, negated, unit, dots)``
     What a blocked sign scan needs of a block of raw keys.
+``resample_streams(t, nt, keys, cols, method, out)``
+    Many streams on one time plan (a clip's joints, keys (K, J, 4)): each as
+    :func:`spline` gives it, bit for bit, in one pass, SIMD over the streams
+    (the "lane layout" section; used by :meth:`quatarray.skeleton.Clip.resample`).
 
 The key-time rules (``key_times``, ``check_times``, ``first_not_increasing``,
 ``not_increasing``) are in :mod:`quatarray._validate`.
@@ -51,7 +55,7 @@ from . import _cubic
 from . import _elements as E
 from ._access import load1, load4, store1, store4
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
-from ._rates import _vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
+from ._rates import vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
@@ -444,7 +448,7 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             f = like(x0, 2.0) / cc
             v = (f * d[1], f * d[2], f * d[3])
             if ORDER == 2:
-                v = _vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
+                v = vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
         if KIND == 2:
             pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
             ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
@@ -749,18 +753,18 @@ _METHODS = {
     "squad": Method(2, _squad_controls, run_squad),
     "cubic": Method(-1, None, None, resample=_resample_cubic),
 }
-_TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
+TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
 # each table method's compiled loops: the evaluation loop, the table, and both in pieces
-_EVALS = {name: _eval_of(f"_{name}", m.run, m.start, m.flush, m.cap) for name, m in _TABLED.items()}
-_SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in _TABLED.items()}
+_EVALS = {name: _eval_of(f"_{name}", m.run, m.start, m.flush, m.cap) for name, m in TABLED.items()}
+_SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in TABLED.items()}
 _PIECES = {
     name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(_EVALS[name].py_func, "_piece")),
                                      _segments_1=ir_inline(specialise(_SEGMENTS[name].py_func, "_piece"))))
-    for name, m in _TABLED.items()
+    for name, m in TABLED.items()
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
 _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
                                   inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
-          for name, m in _TABLED.items() for order in (1, 2)}
+          for name, m in TABLED.items() for order in (1, 2)}
 _EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", inline(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}

@@ -36,6 +36,7 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import inline, kernel, prange, rowloop
+from .algebra import normalize
 
 RELATIONS = ("trans", "rot", "full")
 ALIGNMENTS = ("none", "se3", "sim3", "scale")
@@ -75,8 +76,6 @@ def poses(t, pos, q):
     >>> len(p), p.q[0]
     (2, array([1., 0., 0., 0.]))
     """
-    import quatarray as qa
-
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     q = np.ascontiguousarray(q, dtype=np.float64)
     if pos.ndim != 2 or pos.shape[1] != 3:
@@ -87,7 +86,7 @@ def poses(t, pos, q):
         t = np.ascontiguousarray(t, dtype=np.float64)
         if t.shape != (pos.shape[0],):
             raise ValueError(f"times must have shape ({pos.shape[0]},), got {t.shape}")
-    return Poses(t, pos, qa.normalize(q))
+    return Poses(t, pos, normalize(q))
 
 
 # --------------------------------------------------------------------------
@@ -243,7 +242,7 @@ def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
 
 
 def _resample(ref, est, t_offset):
-    import quatarray as qa
+    from .splines import spline  # the engine only where an estimate is interpolated (CLI start-up)
 
     te = est.t + t_offset
     keep = np.concatenate([[True], np.diff(te) > 0])
@@ -256,8 +255,8 @@ def _resample(ref, est, t_offset):
         raise ValueError("no reference time inside the estimate's time span")
     ref = ref.take(inside)
     pos = np.column_stack([np.interp(ref.t, te, est.pos[:, k]) for k in range(3)])
-    q = qa.spline(te, est.q, ref.t)
-    return ref, Poses(ref.t - t_offset, pos, qa.normalize(q))
+    q = spline(te, est.q, ref.t)
+    return ref, Poses(ref.t - t_offset, pos, normalize(q))
 
 
 # --------------------------------------------------------------------------
@@ -464,7 +463,7 @@ def umeyama(x, y=None, with_scale=True):
     >>> round(a.s, 12), np.allclose(a.t, [1, 2, 3]), np.allclose(a.r, qa.as_matrix(q))
     (2.0, True, True)
     """
-    import quatarray as qa
+    from .conversions import from_matrix  # only once an alignment is found (CLI start-up)
 
     m = x if isinstance(x, Moments) else Moments.of(x, y)
     if m.n < 3:
@@ -480,7 +479,7 @@ def umeyama(x, y=None, with_scale=True):
     r = (u * sign) @ vt
     s = float(d @ sign) / (m.sxx / m.n) if with_scale else 1.0
     t = m.mean_y - s * (r @ m.mean_x)
-    return Alignment(r, qa.from_matrix(r), t, s)
+    return Alignment(r, from_matrix(r), t, s)
 
 
 def fit(ref, est, method="sim3", n_to_align=None):

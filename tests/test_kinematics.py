@@ -212,3 +212,26 @@ def test_dask_nanoseconds_float32_and_errors(rng):
         qd.integrate_angular_velocity(da.from_array(w, chunks=(40, 3)), bad).compute(scheduler="sync")
     with pytest.raises(ValueError, match="`hold`"):
         qd.integrate_angular_velocity(da.from_array(w, chunks=(40, 3)), t, hold="end")
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("n", [2, 15, 16, 17, 18, 19, 64, 67, 1000])
+def test_scan_chains_equal_one_chain(rng, n, dtype):
+    """The scan's interleaved chains (then carried) give the one serial chain of
+    products to rounding, at every length around the cut into parts."""
+    from quatarray.kinematics import _scan
+
+    e = qa.random(n, rng=rng).astype(dtype)
+    q0 = qa.random(rng=rng)
+    for body in (False, True):
+        acc = q0.astype(np.float64)
+        ref = np.empty((n, 4))
+        for k in range(n):
+            x = e[k].astype(np.float64)
+            x = x / np.linalg.norm(x) if dtype == np.float32 else x
+            acc = qa.multiply(acc, x) if body else qa.multiply(x, acc)
+            ref[k] = acc
+        out = e.copy()
+        _scan(out, q0, body, dtype == np.float32)
+        tol = 1e-14 if dtype == np.float64 else 2e-7
+        assert out.dtype == dtype and np.abs(out - ref).max() < tol, (n, body)

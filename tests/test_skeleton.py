@@ -253,6 +253,24 @@ def test_resample_rate_matches_spline_and_interp(six):
     assert r.world()[1].shape == (r.frames, len(clip.joints), 3)
 
 
+@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
+def test_resample_equals_spline_per_joint_bitwise(six, rng, method):
+    """All joints in one pass give exactly what spline gives each joint alone: even
+    times at a rate, uneven key times, new times in any order, joints that skip."""
+    clip = io.read_bvh(six)
+    uneven = clip.replace(times=np.cumsum(rng.uniform(0.005, 0.05, clip.frames)))
+    shuffled = rng.permutation(np.linspace(uneven.times[0], uneven.times[-1], 3 * clip.frames))
+    for c, kw in ((clip, dict(rate=75)), (uneven, dict(times=shuffled))):
+        r = c.resample(method=method, **kw)
+        for j in range(len(c.joints)):
+            if c.orders[j]:
+                ref = qa.spline(c.times, c.rotations[:, j], r.times, method=method)
+                assert np.array_equal(r.rotations[:, j], ref), (method, c.joints[j])
+            else:
+                const = np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4))
+                assert np.array_equal(r.rotations[:, j], const)
+
+
 def test_resample_needs_rate_or_times(six):
     clip = io.read_bvh(six)
     with pytest.raises(ValueError):

@@ -1,8 +1,10 @@
 """Dask twins of the element-wise functions (one factory) and the blocked scans
 (``cumprod``, ``unflip``, ``integrate_angular_velocity``); see :mod:`quatarray.dask`.
 
-Task functions run the in-memory kernels on one block, serially (:func:`_serial`):
-the scheduler supplies the parallelism.
+Task functions run the in-memory kernels on one block, serially
+(``_jit.serial()``, for the task's thread only): the scheduler (threads or
+worker processes) supplies the parallelism, and numba threads inside every
+task would oversubscribe the cores.
 """
 
 import importlib
@@ -21,19 +23,6 @@ from .. import _WHERE, _jit
 from .._validate import as_float, check_core, is_weak, leading, origin, result_dtype
 
 Q, V, M3 = (4,), (3,), (3, 3)
-
-# --------------------------------------------------------------------------
-# kernels run serially inside tasks
-
-def _serial():
-    """Run row kernels on one thread inside a task (this thread only: other
-    threads' calls keep their parallel variant; see ``_jit.serial``).
-
-    The scheduler (threads or worker processes) is the parallel layer; numba
-    threads inside every task would oversubscribe the cores.
-    """
-    return _jit.serial()
-
 
 def _public(name):
     """The in-memory function `name`, from the module the package registers it in
@@ -62,7 +51,7 @@ class _Block:
             start, blocks = blocks[0], blocks[1:]
         kwargs = dict(self.consts)
         kwargs.update(zip(self.arrays, blocks))
-        with _serial(), origin(start):
+        with _jit.serial(), origin(start):
             return _public(self.name)(**kwargs)
 
     def __dask_tokenize__(self):
@@ -285,7 +274,7 @@ def _rows(a, which, axis):
 def _cumprod_local(block, axis):
     from ..algebra import cumprod
 
-    with _serial():
+    with _jit.serial():
         return cumprod(block, axis=axis)
 
 
@@ -299,7 +288,7 @@ def _cumprod_carry(carry, prev, cur):
         return prev
     from ..algebra import multiply
 
-    with _serial():
+    with _jit.serial():
         return multiply(carry, prev)
 
 
@@ -308,7 +297,7 @@ def _cumprod_apply(local, carry, axis):
         return local
     from ..algebra import multiply
 
-    with _serial():
+    with _jit.serial():
         return multiply(carry, local)
 
 
@@ -328,7 +317,7 @@ def _sign_breaks(local, axis):
         return np.expand_dims(np.full(a.shape[1:-1], n), (axis, -1))
     from ..algebra import dot
 
-    with _serial():
+    with _jit.serial():
         d = dot(a[1:], a[:-1])  # as unflip's kernel (its sign aside: 0 and nan stay)
     broken = ~((d < 0) | (d > 0))
     reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n)
@@ -338,7 +327,7 @@ def _sign_breaks(local, axis):
 def _unflip_local(block, axis):
     from ..interpolation import unflip
 
-    with _serial():
+    with _jit.serial():
         local = unflip(block, axis=axis)
     return local, _sign_breaks(local, axis)
 
@@ -355,7 +344,7 @@ def unflip_carry(carry, prev, cur):
     last = prev[1] if carry is None else np.where(carry & prev[2], -prev[1], prev[1])
     from ..algebra import dot
 
-    with _serial():
+    with _jit.serial():
         d = dot(cur[0], last)
     return (np.asarray(d) < 0)[..., None]
 
@@ -524,7 +513,7 @@ def _integrate_task(omega, times, frame, hold, index0):
     # the identity, through the step that crosses into the next block
     from ..kinematics import integrate_angular_velocity
 
-    with _serial():
+    with _jit.serial():
         return integrate_angular_velocity(omega, times, frame=frame, hold=hold, _index0=index0)
 
 
@@ -534,7 +523,7 @@ def _integrate_carries(q0, body, *locals_):
     from ..algebra import multiply
 
     carries = [q0]
-    with _serial():
+    with _jit.serial():
         for local in locals_[:-1]:
             end, c = local[-1], carries[-1]
             carries.append(multiply(c, end) if body else multiply(end, c))
@@ -545,7 +534,7 @@ def _integrate_apply(local, carries, j, size, body):
     from ..algebra import multiply
 
     c = carries[j]
-    with _serial():
+    with _jit.serial():
         return multiply(c, local[:size]) if body else multiply(local[:size], c)
 
 
@@ -571,9 +560,9 @@ def integrate_angular_velocity(omega, times, q0=None, frame="space", hold="mean"
     >>> np.allclose(q, qa.from_rotvec(np.outer(t, [0, 0, 2.0])))
     True
     """
-    from ..kinematics import _check_options
+    from ..kinematics import check_options
 
-    _check_options(frame, hold)
+    check_options(frame, hold)
     x = as_dask(omega, "omega", V)
     if x.ndim != 2:
         raise ValueError(f"Expected `omega` to have shape (N, 3), got {tuple(x.shape)}.")

@@ -29,9 +29,8 @@ from ..io.readers import open_stream
 from ..io.streams import concat, timed_chunks
 from ..io.targets import open_target
 from ..io.writers import check_output
-from .. import jobs
+from .. import _jit, jobs
 from ..jobs import ROWS_PER_PIECE, check_key_times, gimbal_note, new_times
-from .arrays import _serial
 from .windows import spline
 
 # --------------------------------------------------------------------------
@@ -200,7 +199,7 @@ def _scratch_rows(n, core, dtype):
 
 def _bad_rows_task(reader, a, b):
     """Input rows in ``[a, b)`` that ``--on-invalid drop`` drops."""
-    with _serial():
+    with _jit.serial():
         _, good = Cleaner(reader, "drop").check(reader.read(a, b, bad_ok=True))
     return a + np.flatnonzero(~good)
 
@@ -268,7 +267,7 @@ def _convert_task(reader, a, b, row0, rows, to, degrees, target, drop):
     out = _scratch_rows(min(rows, ROWS_PER_PIECE) if piecewise else rows, core, target.dtype)
     clean = Cleaner(reader, "drop" if drop else "error")
     n = 0
-    with _serial():
+    with _jit.serial():
         for p in range(a, b, ROWS_PER_PIECE):
             ch = _read_clean(reader, p, min(p + ROWS_PER_PIECE, b), drop, clean)
             piece = out[: len(ch)] if piecewise else out[n : n + len(ch)]
@@ -349,7 +348,7 @@ def read_keys_task(reader, a, b, drop):
     (see :func:`_first_error`)."""
     clean = Cleaner(reader, "drop" if drop else "error")
     try:
-        with _serial():
+        with _jit.serial():
             parts = [_read_clean(reader, p, min(p + ROWS_PER_PIECE, b), drop, clean).data for p in range(a, b, ROWS_PER_PIECE)]
     except DataError as exc:
         return exc

@@ -13,7 +13,8 @@ from dask.delayed import Delayed
 from dask.highlevelgraph import HighLevelGraph
 
 from .._validate import as_float, spline_order
-from .arrays import Q, _serial, as_dask, carry_all, known_chunks, row_pieces, row_window, unflip_carry
+from .. import _jit
+from .arrays import Q, as_dask, carry_all, known_chunks, row_pieces, row_window, unflip_carry
 
 
 # --------------------------------------------------------------------------
@@ -101,7 +102,7 @@ def _spline_task(times, pieces, flip0, new_times, method, origin, order=0):
     from .._validate import key_times
     from ..splines import plan_times, resample_unit, unit_keys
 
-    with _serial():
+    with _jit.serial():
         q = unit_keys(pieces, flip0)
         t, nt = plan_times(key_times(times, len(q)), np.asarray(new_times), origin=origin)
         return resample_unit(t, nt, q, method, order)
@@ -449,7 +450,7 @@ def spline(times, keys, new_times, method="bezier", chunks=None, order=0):
 def _angular_velocity_task(q, times, frame, lo, hi):
     from ..interpolation import angular_velocity
 
-    with _serial():
+    with _jit.serial():
         return angular_velocity(q, times, frame=frame)[lo:hi]
 
 

@@ -15,8 +15,8 @@ import numpy as np
 
 from . import formats as F
 from .arrays import matrix_rows
-from .clean import TEXT_ROUNDING, time_order
-from .errors import DataError, UsageError
+from .clean import TEXT_ROUNDING
+from .errors import DataError
 from .formats import is_number
 from .streams import Chunk, Reader
 
