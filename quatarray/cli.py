@@ -564,7 +564,7 @@ def cmd_plot(args):
 # argument parsing
 
 
-def _rows(s):
+def _row_count(s):
     try:
         v = int(float(s)) if "e" in s.lower() else int(s)
     except ValueError:
@@ -608,7 +608,7 @@ def build_parser():
                         "with commas and TUM's t x y z qx qy qz qw with spaces; --layout or --format tum "
                         "chooses")
     g.add_argument("--joint", metavar="NAME", help="BVH joint to read (default: the root)")
-    g.add_argument("--chunk", type=_rows, default=DEFAULT_CHUNK, metavar="ROWS",
+    g.add_argument("--chunk", type=_row_count, default=DEFAULT_CHUNK, metavar="ROWS",
                    help=f"rows per chunk (default {DEFAULT_CHUNK})")
     g.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar on stderr (default: when stderr is a terminal)")
@@ -691,7 +691,7 @@ def build_parser():
     s.set_defaults(func=cmd_integrate)
 
     s = sub.add_parser("bench", help="side-by-side throughput against scipy and friends")
-    s.add_argument("--n", type=_rows, default=None, metavar="N", help="batch size")
+    s.add_argument("--n", type=_row_count, default=None, metavar="N", help="batch size")
     s.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     s.set_defaults(func=cmd_bench)
 
@@ -708,7 +708,7 @@ def build_parser():
     s.add_argument("--delta", type=_positive, default=1, metavar="N", help="RPE pair distance (default 1)")
     s.add_argument("--delta-unit", choices=("frames", "m", "s"), default="frames", help="unit of --delta")
     s.add_argument("--all-pairs", action="store_true", help="RPE on all pairs, not consecutive ones")
-    s.add_argument("--n-to-align", type=_rows, metavar="N", help="fit the alignment on the first N poses")
+    s.add_argument("--n-to-align", type=_row_count, metavar="N", help="fit the alignment on the first N poses")
     s.add_argument("--t-max-diff", type=_positive, default=0.01, metavar="S",
                    help="largest time difference of an associated pair (default 0.01 s)")
     s.add_argument("--t-offset", type=float, default=0.0, metavar="S", help="added to the estimate's times")

@@ -6,8 +6,8 @@ constant rate and applies its exact exponential, so a constant angular
 velocity is integrated without error (to rounding), whatever the step.
 
 The integration is a scan (each orientation is the one before times the
-step's exponential). What bounds it (10⁶ steps, float64, one thread of the
-2-core CI machine, CPU time): the step exponentials (a square root, a
+step's exponential). What bounds it (10⁶ steps, float64, one thread, CPU
+time, measured): the step exponentials (a square root, a
 sincos: a separate vectorised pass) take about 10 ns a step; one chain of
 products is bound by its latency (each product waits for the one before,
 four multiply-adds deep): about 15 ns a step; the scan therefore runs four

@@ -112,7 +112,7 @@ def _apply_affine(p, a, t, out):
     # One transform, many points: the 3×3 linear part and translation are
     # computed once by the caller. Serial on purpose: 12 flops a point is
     # memory-bound, and one thread already streams at memory speed (the
-    # threaded variant measured 2-4x slower on the 2-core CI machine).
+    # threaded variant measured 2-4x slower, with two cores sharing one memory bus).
     a00, a01, a02 = a[0, 0], a[0, 1], a[0, 2]
     a10, a11, a12 = a[1, 0], a[1, 1], a[1, 2]
     a20, a21, a22 = a[2, 0], a[2, 1], a[2, 2]

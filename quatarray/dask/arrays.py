@@ -263,7 +263,7 @@ def _lead_axis(x, axis, fname):
     return axis % lead
 
 
-def _rows(a, which, axis):
+def _end_rows(a, which, axis):
     """Row 0 or −1 of `a` along `axis`, keeping the axis."""
     return np.take(a, [which], axis=axis)
 
@@ -279,7 +279,7 @@ def _cumprod_local(block, axis):
 
 
 def _cumprod_summary(local, axis):
-    return _rows(local, -1, axis) if local.shape[axis] else None
+    return _end_rows(local, -1, axis) if local.shape[axis] else None
 
 
 def _cumprod_carry(carry, prev, cur):
@@ -335,7 +335,7 @@ def _unflip_local(block, axis):
 def _unflip_summary(local, axis):
     local, reach = local
     n = local.shape[axis]
-    return (_rows(local, 0, axis), _rows(local, -1, axis), reach == n) if n else None
+    return (_end_rows(local, 0, axis), _end_rows(local, -1, axis), reach == n) if n else None
 
 
 def unflip_carry(carry, prev, cur):
