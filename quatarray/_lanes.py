@@ -271,10 +271,8 @@ def resample_streams(t, nt, keys, cols, method, out):
     :func:`spline` gives each stream alone, in one pass (see the module docstring)."""
     nk = t.shape[0]
     cols = np.asarray(cols, np.int64)
-    if method not in _LANE_SPLINE:  # cubic: one global system per stream, stream by stream
-        for j in cols:
-            out[:, j] = resample_unit(t, nt, unit_keys([np.ascontiguousarray(keys[:, j])]), method)
-        return out
+    if method not in _LANE_SPLINE:  # cubic: one global system per stream
+        return resample_each(t, nt, keys, cols, method, out)
     dt = out.dtype
     q = np.empty(lane_groups(len(cols)) * nk * G4, dt)
     _gather_unit(keys, cols, q)
@@ -290,4 +288,14 @@ def resample_streams(t, nt, keys, cols, method, out):
             _lane_squad_controls(q, nk, c_out)
     if nt.shape[0]:
         _LANE_SPLINE[method](t, nt, q, c_out, c_in, cols, out.shape[1], out.reshape(-1))
+    return out
+
+
+def resample_each(t, nt, keys, cols, method, out):
+    """What :func:`resample_streams` gives, stream by stream through the spline
+    engine (:func:`quatarray.splines.resample_unit`): for the cubic spline, and
+    for small clips, whose streams the engine's own kernels serve without
+    compiling the lane kernels."""
+    for j in cols:
+        out[:, j] = resample_unit(t, nt, unit_keys([np.ascontiguousarray(keys[:, j])]), method)
     return out

@@ -16,12 +16,17 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import prange, rowloop
+from ._lanes import resample_each, resample_streams
 from ._validate import as_times, key_times
 from .algebra import normalize
-from ._lanes import resample_streams
 from .splines import check_method, plan_times
 
 AXES = "XYZ"
+# Clip.resample runs every joint in one pass (quatarray._lanes) from this many output
+# joint-samples on; below, joint by joint through the engine's own kernels (the same
+# bits), so that a small clip does not wait for the one-pass kernels to compile (about
+# 3 s of a first call)
+LANES_MIN_SAMPLES = 200_000
 
 
 @rowloop(rows=1)
@@ -217,8 +222,9 @@ class Clip:
         for j in range(J):
             if not self.orders[j]:  # no rotation channels: the clip's constant rotation (the identity)
                 rot[:, j] = normalize(self.rotations[0, j])
-        if cols:  # every joint as spline(t, rotations[:, j], nt, method), in one pass
-            resample_streams(t, nt, self.rotations, cols, method, rot)
+        if cols:  # every joint as spline(t, rotations[:, j], nt, method)
+            big = nt.size * len(cols) >= LANES_MIN_SAMPLES
+            (resample_streams if big else resample_each)(t, nt, self.rotations, cols, method, rot)
         trans = np.empty((nt.size, J, 3))
         trans[:] = self.offsets
         pj = self.positional()

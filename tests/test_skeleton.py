@@ -253,10 +253,15 @@ def test_resample_rate_matches_spline_and_interp(six):
     assert r.world()[1].shape == (r.frames, len(clip.joints), 3)
 
 
-@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad"])
-def test_resample_equals_spline_per_joint_bitwise(six, rng, method):
-    """All joints in one pass give exactly what spline gives each joint alone: even
-    times at a rate, uneven key times, new times in any order, joints that skip."""
+@pytest.mark.parametrize("one_pass", [True, False])
+@pytest.mark.parametrize("method", ["bezier", "slerp", "nlerp", "squad", "cubic"])
+def test_resample_equals_spline_per_joint_bitwise(six, rng, method, one_pass, monkeypatch):
+    """All joints in one pass (or joint by joint, for small clips) give exactly what
+    spline gives each joint alone: even times at a rate, uneven key times, new times
+    in any order, joints that skip."""
+    from quatarray import skeleton
+
+    monkeypatch.setattr(skeleton, "LANES_MIN_SAMPLES", 0 if one_pass else 10**12)
     clip = io.read_bvh(six)
     uneven = clip.replace(times=np.cumsum(rng.uniform(0.005, 0.05, clip.frames)))
     shuffled = rng.permutation(np.linspace(uneven.times[0], uneven.times[-1], 3 * clip.frames))
