@@ -1,13 +1,12 @@
 """Per-element 3×3 matrix functions: a matrix is a row-major 9-tuple
 ``(m00, m01, m02, m10, …, m22)``, a vector a 3-tuple.
 
-Shared by :mod:`quatarray.conversions` (rotation matrices) and
-:mod:`quatarray.transforms` (the VQM group). Like :mod:`quatarray._elements`
+Shared by :mod:`quatarray.conversions` (rotation matrices),
+:mod:`quatarray.transforms` (the VQM group) and :mod:`quatarray._cubic`. Like :mod:`quatarray._elements`
 they never allocate, validate or raise and keep the float type of their
 arguments.
 """
 
-from ._access import load33, store33  # noqa: F401  (row access, importable from here too)
 from ._jit import element
 
 

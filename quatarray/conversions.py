@@ -19,8 +19,9 @@ import math
 import numpy as np
 
 from . import _elements as E
+from ._access import load33, store33
 from ._jit import element, inline, like, prange, rowloop
-from ._mat33 import cofactor33, det33, load33, store33
+from ._mat33 import cofactor33, det33
 from ._trig import half_arc, sincos, sincos_limit
 from ._validate import as_float, elementwise, is_weak, where
 

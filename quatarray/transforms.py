@@ -27,9 +27,10 @@ import math
 import numpy as np
 
 from . import _elements as E
+from ._access import load33, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
-from ._mat33 import cofactor33, det33, lerp9, load33, matmul, matvec, scale9, store33, transpose
+from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
 from .conversions import from_matrix
 
 _F64 = np.dtype(np.float64)
