@@ -103,11 +103,11 @@ def compose_axes(e0, e1, e2, intrinsic):
 @rowloop(parallel=False)
 def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, lo, hi, out, flags):
     """Bernardes & Viollet, row by row, on q as it is: ``(rows at gimbal lock, rows
-    outside)``. ``locked[r]`` says whether row r is at gimbal lock, ``outside[r]``
-    whether h1 + h2 (the two half-angle magnitudes of row r, between |q| and 2|q|)
-    is not strictly between `lo` and `hi`: those rows get nan. (Per-row flags,
-    counted after the loop: a reduction inside it kept the float32 loop from
-    vectorising.)
+    outside)``. ``flags[r]`` (uint8) has bit 0 set when row r is at gimbal lock and
+    bit 1 when h1 + h2 (the two half-angle magnitudes of row r, between |q| and
+    2|q|) is not strictly between `lo` and `hi`: such a row is outside, its angles
+    nan. (Per-row flags, counted after the loop: a reduction inside it kept the
+    float32 loop from vectorising.)
 
     With ``(lo, hi) = (0, inf)`` the rows outside are the zero, inf and nan
     quaternions; :func:`euler_locked` first passes the :data:`_NEAR` bounds, which
