@@ -26,154 +26,138 @@ velocity J(ρ)ρ' and the angular acceleration J(ρ)ρ'' + N(ρ, ρ') (body fram
 radians per time unit: scipy's ``RotationSpline(t, r)(new_t, order)``).
 """
 
-import math
-
 import numpy as np
 
-from . import _elements as E
-from ._jit import element, inline, kernel, specialise
-from ._mat33 import cofactor33, det33, matmul, matvec, scale9
-from ._rates import acc_coeffs, inv_coeff, jac_coeffs, jac_dot, log_arc
+from ._jit import kernel
 
 MAX_ITER = 10  # scipy's RotationSpline.MAX_ITER
 TOL = 1e-9  # and its TOL
 NCOEF = 9  # c0, c1, c2 of a segment
+KL = 5  # the half width of the system's band: row 3j + a couples columns 3(j − 1) … 3(j + 1) + 2
+SMALL = 0.01  # the angle below which the step coefficients take their series (see _steps)
 
 
-@inline
-def _jmat(r, k1, k2, sgn):
-    """I + sgn·k1[r]× + k2[r]×² as a row-major 9-tuple (sgn = −1: J(r); +1 with
-    k1 = ½: J(r)⁻¹)."""
-    x, y, z = r
-    a = sgn * k1
-    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return (1.0 - k2 * (yy + zz), -a * z + k2 * xy, a * y + k2 * xz,
-            a * z + k2 * xy, 1.0 - k2 * (xx + zz), -a * x + k2 * yz,
-            -a * y + k2 * xz, a * x + k2 * yz, 1.0 - k2 * (xx + yy))  # fmt: skip
+def _steps(q):
+    """(r, J, J⁻¹, (j1, j2, k2)) of every step k of the unit keys q (K, 4), float64 and
+    vectorised (no compiling): r_k = Log(q_k* ⊗ q_{k+1}) on the plain great arc, the
+    Jacobians (K−1, 3, 3) and the coefficients of N(r_k, ·) (:func:`quatarray._rates.jac_dot`).
 
-
-@element
-def _inv33(m):
-    c = cofactor33(m)
-    d = 1.0 / det33(m)
-    return (c[0] * d, c[3] * d, c[6] * d, c[1] * d, c[4] * d, c[7] * d, c[2] * d, c[5] * d, c[8] * d)
-
-
-@element
-def _sub9(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4], a[5] - b[5], a[6] - b[6], a[7] - b[7],
-            a[8] - b[8])
-
-
-
-
-# the keys' steps through libm's atan2: the setup loop is not SIMD, and the polynomial
-# atan2 of the evaluation loops took LLVM 0.5 s more to compile here
-_log_step = inline(specialise(getattr(log_arc, "py_func", log_arc), "_libm", atan2=math.atan2))  # plain: no JIT
-
-
-@element
-def _geometry(p, q):
-    """(r, J(r), J(r)⁻¹, (j1, j2, k2)) of the segment from key p to key q: r = Log(p* ⊗ q),
-    the Jacobians as 9-tuples and the coefficients of N(r, ·) (:func:`jac_dot`)."""
-    r, n2, s, c = _log_step(p, q)
-    k1, k2 = jac_coeffs(n2, s, c)
-    j1, j2 = acc_coeffs(n2, s, c)
-    return r, _jmat(r, k1, k2, -1.0), _jmat(r, 0.5, inv_coeff(n2, s, c), 1.0), (j1, j2, k2)
-
-
-@element
-def _ld9(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2], a[i, 3], a[i, 4], a[i, 5], a[i, 6], a[i, 7], a[i, 8])
-
-
-@element
-def _st9(a, i, m):
-    for c in range(9):
-        a[i, c] = m[c]
-
-
+    The functions of the angle n = |r| are the closed forms of :mod:`quatarray._rates`
+    (from s, c = sin, cos of n/2) above n = 0.01 and their Taylor series to n⁴ below:
+    what the closed forms lose there to cancellation is at most ε/n² relative, and each
+    multiplies a power of r that makes up for it (j2, the worst, ends up ε/n absolute)."""
+    p, b = q[:-1], q[1:]
+    d0 = np.einsum("ij,ij->i", p, b)
+    dv = p[:, :1] * b[:, 1:] - b[:, :1] * p[:, 1:] - np.cross(p[:, 1:], b[:, 1:])
+    un = np.sqrt(np.einsum("ij,ij->i", dv, dv))
+    th = np.arctan2(un, d0)  # the arc's angle on S³, in [0, π]
+    r = dv * np.where(un > 0.0, 2.0 * th / np.where(un > 0.0, un, 1.0), 2.0)[:, None]
+    nd = np.sqrt(d0 * d0 + un * un)
+    s, c = un / nd, d0 / nd
+    n = 2.0 * th
+    small = n < SMALL
+    m = np.where(small, 1.0, n)  # no 0/0 in the closed forms where they are not used
+    n2 = n * n
+    k1 = np.where(small, 0.5 - n2 * (1 / 24 - n2 / 720), 2.0 * s * s / (m * m))
+    k2 = np.where(small, 1 / 6 - n2 * (1 / 120 - n2 / 5040), (m - 2.0 * s * c) / m**3)
+    ki = np.where(small, 1 / 12 + n2 * (1 / 720 + n2 / 30240), (1.0 - 0.5 * m * c / np.where(small, 1.0, s)) / (m * m))
+    j1 = np.where(small, 1 / 12 - n2 * (1 / 180 - n2 / 6720), (4.0 * s * s - 2.0 * m * s * c) / m**4)
+    j2 = np.where(small, -1 / 60 + n2 * (1 / 1260 - n2 / 60480), (6.0 * s * c - 3.0 * m + 2.0 * m * s * s) / m**5)
+    sk = np.zeros((len(r), 3, 3))  # [r]×
+    sk[:, 0, 1], sk[:, 0, 2], sk[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
+    sk[:, 1, 0], sk[:, 2, 0], sk[:, 2, 1] = r[:, 2], -r[:, 1], r[:, 0]
+    sq = sk @ sk
+    eye = np.eye(3)
+    jm = eye - k1[:, None, None] * sk + k2[:, None, None] * sq
+    ji = eye + 0.5 * sk + ki[:, None, None] * sq
+    return r, jm, ji, np.stack([j1, j2, k2], axis=1)
 
 
 @kernel
+def _solve(band, b0, r, kn, ji, w):
+    """scipy's rate iteration on the interior rates w (3n,) (those of keys 1 … K−2, in
+    and out): up to MAX_ITER passes, each an exact solve of the block-tridiagonal system
+    whose right side b0 − N(r_j, J(r_j)⁻¹ w_j) comes from the last pass's rates, until no
+    rate moves by more than TOL·(1 + |w|). `band` (3n, 2KL + 1) holds the matrix by
+    diagonals (``band[i, c − i + KL]`` = entry (i, c)); it is factored in place (LU
+    without pivoting: the matrix is block diagonally dominant), once. `ji` (n, 9) is
+    J(r_j)⁻¹ row-major, `kn` (n, 3) the coefficients of N. Returns the number of passes.
+
+    Plain loops over small arrays, no calls: the setup's one compiled function."""
+    n3 = band.shape[0]
+    for i in range(n3):
+        for k in range(i + 1, min(n3, i + KL + 1)):
+            f = band[k, i - k + KL] / band[i, KL]
+            band[k, i - k + KL] = f
+            for c in range(i + 1, min(n3, i + KL + 1)):
+                band[k, c - k + KL] -= f * band[i, c - i + KL]
+    x = np.empty(n3)
+    v = np.empty(3)
+    cp = np.empty(3)
+    passes = 0
+    for it in range(MAX_ITER):
+        passes += 1
+        for j in range(n3 // 3):  # the right side: b0 − N(r_j, J(r_j)⁻¹ w_j)
+            for a in range(3):
+                v[a] = ji[j, 3 * a] * w[3 * j] + ji[j, 3 * a + 1] * w[3 * j + 1] + ji[j, 3 * a + 2] * w[3 * j + 2]
+            dp = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
+            for a in range(3):
+                cp[a] = r[j, (a + 1) % 3] * v[(a + 2) % 3] - r[j, (a + 2) % 3] * v[(a + 1) % 3]
+            for a in range(3):
+                a1, a2 = (a + 1) % 3, (a + 2) % 3
+                ccp = r[j, a1] * cp[a2] - r[j, a2] * cp[a1]
+                dccp = v[a1] * cp[a2] - v[a2] * cp[a1]
+                x[3 * j + a] = b0[3 * j + a] - (dp * (kn[j, 0] * cp[a] + kn[j, 1] * ccp) + kn[j, 2] * dccp)
+        for i in range(n3):  # L y = b
+            e = x[i]
+            for c in range(max(0, i - KL), i):
+                e -= band[i, c - i + KL] * x[c]
+            x[i] = e
+        done = True
+        for i in range(n3 - 1, -1, -1):  # U w = y, and the convergence test
+            e = x[i]
+            for c in range(i + 1, min(n3, i + KL + 1)):
+                e -= band[i, c - i + KL] * x[c]
+            e /= band[i, KL]
+            x[i] = e
+            if not abs(e - w[i]) < TOL * (1.0 + abs(e)):
+                done = False
+        for i in range(n3):  # (a loop: a slice assignment compiles numba's shape-error message)
+            w[i] = x[i]
+        if done:
+            break
+    return passes
+
+
 def _setup(q, dt, coef):
     """Segment coefficients (K−1, 9) = (c0, c1, c2) of scipy's RotationSpline through
-    the unit, unflipped keys q (K, 4) with steps dt (K−1,), all float64. Returns the
-    number of passes the rate iteration took (0 for two keys)."""
-    m = dt.shape[0]  # segments
-    r = np.empty((m, 3))
-    jm = np.empty((m, 9))  # J(r_k)
-    ji = np.empty((m, 9))  # J(r_k)⁻¹
-    kn = np.empty((m, 3))  # the coefficients of N(r_k, ·)
-    for k in range(m):
-        rk, jk, jik, knk = _geometry(E.load4(q, k), E.load4(q, k + 1))
-        E.store3(r, k, rk)
-        _st9(jm, k, jk)
-        _st9(ji, k, jik)
-        E.store3(kn, k, knk)
-    w = np.empty((m, 3))  # w[k]: the rate at key k + 1 (w[m − 1] stays r_{m−1}/h_{m−1})
-    for k in range(m):
-        for c in range(3):
-            w[k, c] = r[k, c] / dt[k]
-    first = E.load3(w, 0)
+    the unit, unflipped keys q (K, 4) with steps dt (K−1,), all float64, into `coef`.
+    Returns the number of passes the rate iteration took (0 for two keys)."""
+    r, jm, ji, kn = _steps(q)
+    m = len(dt)
+    rate = np.empty((m + 1, 3))  # the body rates at the keys: the ends r_0/h_0, r_{K−2}/h_{K−2}
+    rate[0] = r[0] / dt[0]
+    rate[1:] = r / dt[:, None]  # the start of the iteration: the rates of the steps behind
     passes = 0
     n = m - 1  # unknown rates: keys 1 … K−2
     if n > 0:
-        # block elimination of the matrix: rows j = 0 … n−1 (key j + 1), diagonal
-        # 4(1/h_j + 1/h_{j+1}) I, left 2/h_j J(r_j), right 2/h_{j+1} J(r_{j+1})⁻¹
-        g = np.empty((n, 9))  # left_j · P_{j−1}⁻¹
-        pinv = np.empty((n, 9))  # P_j⁻¹, P_j the eliminated diagonal block
-        for j in range(n):
-            d = 4.0 * (1.0 / dt[j] + 1.0 / dt[j + 1])
-            p = (d, 0.0, 0.0, 0.0, d, 0.0, 0.0, 0.0, d)
-            if j > 0:
-                gj = matmul(scale9(_ld9(jm, j), 2.0 / dt[j]), _ld9(pinv, j - 1))
-                _st9(g, j, gj)
-                p = _sub9(p, matmul(gj, scale9(_ld9(ji, j), 2.0 / dt[j])))
-            _st9(pinv, j, _inv33(p))
-        b0 = np.empty((n, 3))
-        for j in range(n):
-            for c in range(3):
-                b0[j, c] = 6.0 * (r[j, c] / dt[j] ** 2 + r[j + 1, c] / dt[j + 1] ** 2)
-        e0 = matvec(_ld9(jm, 0), first)
-        e1 = matvec(_ld9(ji, m - 1), E.load3(w, m - 1))
-        for c in range(3):
-            b0[0, c] -= 2.0 / dt[0] * e0[c]
-            b0[n - 1, c] -= 2.0 / dt[m - 1] * e1[c]
-        y = np.empty((n, 3))
-        for it in range(MAX_ITER):
-            passes += 1
-            for j in range(n):  # right side with the current rates, forward sweep
-                rd = matvec(_ld9(ji, j), E.load3(w, j))
-                nb = jac_dot(E.load3(r, j), rd, kn[j, 0], kn[j, 1], kn[j, 2])
-                bj = (b0[j, 0] - nb[0], b0[j, 1] - nb[1], b0[j, 2] - nb[2])
-                if j > 0:
-                    gy = matvec(_ld9(g, j), E.load3(y, j - 1))
-                    bj = (bj[0] - gy[0], bj[1] - gy[1], bj[2] - gy[2])
-                E.store3(y, j, bj)
-            done = True
-            nxt = (0.0, 0.0, 0.0)
-            for j in range(n - 1, -1, -1):  # back sweep into w, convergence test
-                yj = E.load3(y, j)
-                if j < n - 1:
-                    u = matvec(scale9(_ld9(ji, j + 1), 2.0 / dt[j + 1]), nxt)
-                    yj = (yj[0] - u[0], yj[1] - u[1], yj[2] - u[2])
-                x = matvec(_ld9(pinv, j), yj)
-                for c in range(3):
-                    if not abs(x[c] - w[j, c]) < TOL * (1.0 + abs(x[c])):
-                        done = False
-                    w[j, c] = x[c]
-                nxt = x
-            if done:
-                break
-    for k in range(m):
-        ws = first if k == 0 else E.load3(w, k - 1)
-        rd = matvec(_ld9(ji, k), E.load3(w, k))
-        h = dt[k]
-        for c in range(3):
-            coef[k, 0 + c] = (-2.0 * r[k, c] + h * ws[c] + h * rd[c]) / h ** 3
-            coef[k, 3 + c] = (3.0 * r[k, c] - 2.0 * h * ws[c] - h * rd[c]) / h ** 2
-            coef[k, 6 + c] = ws[c]
+        # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹
+        band = np.zeros((n, 3, 2 * KL + 1))
+        g = 2.0 / dt[1:n, None]
+        for a in range(3):
+            band[1:, a, 2 - a : 5 - a] = g * jm[1:n, a]
+            band[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
+            band[:-1, a, 8 - a : 11 - a] = g * ji[1:n, a]
+        b0 = 6.0 * (r[:-1] / dt[:-1, None] ** 2 + r[1:] / dt[1:, None] ** 2)
+        b0[0] -= 2.0 / dt[0] * (jm[0] @ rate[0])  # the known end rates, to the right side
+        b0[-1] -= 2.0 / dt[-1] * (ji[-1] @ rate[-1])
+        w = np.ascontiguousarray(rate[1:-1]).reshape(-1)
+        passes = _solve(band.reshape(3 * n, -1), b0.reshape(-1), r, kn, ji.reshape(m, 9), w)
+        rate[1:-1] = w.reshape(n, 3)
+    ws, rd, h = rate[:-1], np.einsum("kab,kb->ka", ji, rate[1:]), dt[:, None]  # ρ'(0), ρ'(h)
+    coef[:, 0:3] = (-2.0 * r + h * ws + h * rd) / h**3
+    coef[:, 3:6] = (3.0 * r - 2.0 * h * ws - h * rd) / h**2
+    coef[:, 6:9] = ws
     return passes
 
 
