@@ -36,22 +36,33 @@ NCOEF = 9  # c0, c1, c2 of a segment
 KL = 5  # the half width of the system's band: row 3j + a couples columns 3(j − 1) … 3(j + 1) + 2
 SMALL = 0.01  # the angle below which the step coefficients take their series (see _steps)
 
+# The setup works on components: a vector field over the steps is a (3, K−1) array, a
+# matrix field (3, 3, K−1), a scalar one (K−1,), so that every numpy operation runs
+# on whole contiguous rows.
+
+
+def _cross(a, b):
+    """a × b, component-wise (3, n)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
 
 def _steps(q):
-    """(r, J, J⁻¹, (j1, j2, k2)) of every step k of the unit keys q (K, 4), float64 and
-    vectorised (no compiling): r_k = Log(q_k* ⊗ q_{k+1}) on the plain great arc, the
-    Jacobians (K−1, 3, 3) and the coefficients of N(r_k, ·) (:func:`quatarray._rates.jac_dot`).
+    """(r, rr, (k1, k2, ki, j1, j2)) of every step k of the unit keys q (K, 4), float64
+    and vectorised (no compiling): r_k = Log(q_k* ⊗ q_{k+1}) on the plain great arc
+    (3, K−1), rr = |r_k|² and the functions of n = |r_k| that make J(r) = I − k1[r]× + k2[r]×²,
+    J(r)⁻¹ = I + ½[r]× + ki[r]×² and N(r, ·) (j1, j2, k2: :func:`quatarray._rates.jac_dot`).
 
-    The functions of the angle n = |r| are the closed forms of :mod:`quatarray._rates`
-    (from s, c = sin, cos of n/2) above n = 0.01 and their Taylor series to n⁴ below:
-    what the closed forms lose there to cancellation is at most ε/n² relative, and each
-    multiplies a power of r that makes up for it (j2, the worst, ends up ε/n absolute)."""
-    p, b = q[:-1], q[1:]
-    d0 = np.einsum("ij,ij->i", p, b)
-    dv = p[:, :1] * b[:, 1:] - b[:, :1] * p[:, 1:] - np.cross(p[:, 1:], b[:, 1:])
-    un = np.sqrt(np.einsum("ij,ij->i", dv, dv))
+    They are the closed forms of :mod:`quatarray._rates` (from s, c = sin, cos of n/2)
+    above n = 0.01 and their Taylor series to n⁴ below: what the closed forms lose there
+    to cancellation is at most ε/n² relative, and each multiplies a power of r that
+    makes up for it (j2, the worst, ends up ε/n absolute)."""
+    qt = np.ascontiguousarray(q.T)
+    p, b = qt[:, :-1], qt[:, 1:]
+    d0 = np.einsum("ij,ij->j", p, b)
+    dv = p[0] * b[1:] - b[0] * p[1:] - _cross(p[1:], b[1:])
+    un = np.sqrt(np.einsum("ij,ij->j", dv, dv))
     th = np.arctan2(un, d0)  # the arc's angle on S³, in [0, π]
-    r = dv * np.where(un > 0.0, 2.0 * th / np.where(un > 0.0, un, 1.0), 2.0)[:, None]
+    r = dv * np.where(un > 0.0, 2.0 * th / np.where(un > 0.0, un, 1.0), 2.0)
     nd = np.sqrt(d0 * d0 + un * un)
     s, c = un / nd, d0 / nd
     n = 2.0 * th
@@ -63,67 +74,72 @@ def _steps(q):
     ki = np.where(small, 1 / 12 + n2 * (1 / 720 + n2 / 30240), (1.0 - 0.5 * m * c / np.where(small, 1.0, s)) / (m * m))
     j1 = np.where(small, 1 / 12 - n2 * (1 / 180 - n2 / 6720), (4.0 * s * s - 2.0 * m * s * c) / m**4)
     j2 = np.where(small, -1 / 60 + n2 * (1 / 1260 - n2 / 60480), (6.0 * s * c - 3.0 * m + 2.0 * m * s * s) / m**5)
-    sk = np.zeros((len(r), 3, 3))  # [r]×
-    sk[:, 0, 1], sk[:, 0, 2], sk[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
-    sk[:, 1, 0], sk[:, 2, 0], sk[:, 2, 1] = r[:, 2], -r[:, 1], r[:, 0]
-    sq = sk @ sk
-    eye = np.eye(3)
-    jm = eye - k1[:, None, None] * sk + k2[:, None, None] * sq
-    ji = eye + 0.5 * sk + ki[:, None, None] * sq
-    return r, jm, ji, np.stack([j1, j2, k2], axis=1)
+    return r, np.einsum("ij,ij->j", r, r), (k1, k2, ki, j1, j2)
+
+
+def _matrix(r, rr, alpha, beta, gamma):
+    """α I + β [r]× + γ [r]×² (3, 3, n) for vectors r (3, n), rr = |r|²."""
+    out = gamma * r[:, None] * r[None, :]  # [r]×² = r rᵀ − |r|² I
+    for a in range(3):
+        out[a, a] += alpha - gamma * rr
+        a1, a2 = (a + 1) % 3, (a + 2) % 3
+        out[a1, a2] -= beta * r[a]
+        out[a2, a1] += beta * r[a]
+    return out
 
 
 @kernel
-def _solve(band, b0, r, kn, ji, w):
-    """scipy's rate iteration on the interior rates w (3n,) (those of keys 1 … K−2, in
-    and out): up to MAX_ITER passes, each an exact solve of the block-tridiagonal system
-    whose right side b0 − N(r_j, J(r_j)⁻¹ w_j) comes from the last pass's rates, until no
-    rate moves by more than TOL·(1 + |w|). `band` (3n, 2KL + 1) holds the matrix by
-    diagonals (``band[i, c − i + KL]`` = entry (i, c)); it is factored in place (LU
-    without pivoting: the matrix is block diagonally dominant), once. `ji` (n, 9) is
-    J(r_j)⁻¹ row-major, `kn` (n, 3) the coefficients of N. Returns the number of passes.
+def _iterate(band, x, mats, b0, rk, w):
+    """scipy's rate iteration on the interior rates `w` (3n,) (keys 1 … K−2, in and out;
+    returns the number of passes): each pass solves the system with the right side
+    b0 − N(r_j, v_j), v_j = J(r_j)⁻¹ w_j, of the last pass's rates, until no rate moves by
+    more than TOL·(1 + |w|). ``mats[j]`` holds J(r_j)⁻¹, [r_j]× J(r_j)⁻¹ and
+    (j1[r_j]× + j2[r_j]×²) J(r_j)⁻¹ row-major, ``rk[j]`` (r_j, k2), so that
+    N = (r·w)·(the third)·w + k2 (the first)·w × (the second)·w.
 
-    Plain loops over small arrays, no calls: the setup's one compiled function."""
-    n3 = band.shape[0]
+    `band` (N + KL, 2KL + 1) holds the matrix by diagonals, entry (i, c) at
+    ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop needs a
+    bound); it is factored in place, once (LU without pivoting: the matrix is block
+    diagonally dominant; the pivots' reciprocals on the diagonal). `x` (N + 2KL,) is
+    the work vector, padded with KL zeros on both sides.
+
+    The only compiled part of the setup (the recurrences along the keys), in few
+    statements: each statement of a kernel costs compile time on the first call."""
+    n3 = band.shape[0] - KL
     for i in range(n3):
-        for k in range(i + 1, min(n3, i + KL + 1)):
-            f = band[k, i - k + KL] / band[i, KL]
-            band[k, i - k + KL] = f
-            for c in range(i + 1, min(n3, i + KL + 1)):
-                band[k, c - k + KL] -= f * band[i, c - i + KL]
-    x = np.empty(n3)
-    v = np.empty(3)
-    cp = np.empty(3)
+        band[i, KL] = 1.0 / band[i, KL]
+        for k in range(1, KL + 1):
+            f = band[i + k, KL - k] * band[i, KL]
+            band[i + k, KL - k] = f
+            for c in range(1, KL + 1):
+                band[i + k, KL - k + c] -= f * band[i, KL + c]
+    y = np.empty(9)
     passes = 0
-    for it in range(MAX_ITER):
+    while passes < MAX_ITER:
         passes += 1
-        for j in range(n3 // 3):  # the right side: b0 − N(r_j, J(r_j)⁻¹ w_j)
-            for a in range(3):
-                v[a] = ji[j, 3 * a] * w[3 * j] + ji[j, 3 * a + 1] * w[3 * j + 1] + ji[j, 3 * a + 2] * w[3 * j + 2]
-            dp = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
-            for a in range(3):
-                cp[a] = r[j, (a + 1) % 3] * v[(a + 2) % 3] - r[j, (a + 2) % 3] * v[(a + 1) % 3]
+        for j in range(n3 // 3):
+            for a in range(9):
+                y[a] = mats[j, 3 * a] * w[3 * j] + mats[j, 3 * a + 1] * w[3 * j + 1] + mats[j, 3 * a + 2] * w[3 * j + 2]
+            dp = rk[j, 0] * w[3 * j] + rk[j, 1] * w[3 * j + 1] + rk[j, 2] * w[3 * j + 2]
             for a in range(3):
                 a1, a2 = (a + 1) % 3, (a + 2) % 3
-                ccp = r[j, a1] * cp[a2] - r[j, a2] * cp[a1]
-                dccp = v[a1] * cp[a2] - v[a2] * cp[a1]
-                x[3 * j + a] = b0[3 * j + a] - (dp * (kn[j, 0] * cp[a] + kn[j, 1] * ccp) + kn[j, 2] * dccp)
-        for i in range(n3):  # L y = b
-            e = x[i]
-            for c in range(max(0, i - KL), i):
-                e -= band[i, c - i + KL] * x[c]
-            x[i] = e
+                x[KL + 3 * j + a] = b0[3 * j + a] - dp * y[6 + a] - rk[j, 3] * (y[a1] * y[3 + a2] - y[a2] * y[3 + a1])
+        # the substitutions, the nearest neighbour last (each row then waits for the one
+        # before by one multiply-add)
+        for i in range(n3):
+            e = x[KL + i]
+            for c in range(KL, 0, -1):
+                e -= band[i, KL - c] * x[KL + i - c]
+            x[KL + i] = e
         done = True
-        for i in range(n3 - 1, -1, -1):  # U w = y, and the convergence test
-            e = x[i]
-            for c in range(i + 1, min(n3, i + KL + 1)):
-                e -= band[i, c - i + KL] * x[c]
-            e /= band[i, KL]
-            x[i] = e
-            if not abs(e - w[i]) < TOL * (1.0 + abs(e)):
-                done = False
-        for i in range(n3):  # (a loop: a slice assignment compiles numba's shape-error message)
-            w[i] = x[i]
+        for i in range(n3 - 1, -1, -1):
+            e = x[KL + i]
+            for c in range(KL, 0, -1):
+                e -= band[i, KL + c] * x[KL + i + c]
+            e *= band[i, KL]
+            x[KL + i] = e
+            done &= abs(e - w[i]) < TOL * (1.0 + abs(e))
+            w[i] = e
         if done:
             break
     return passes
@@ -132,32 +148,48 @@ def _solve(band, b0, r, kn, ji, w):
 def _setup(q, dt, coef):
     """Segment coefficients (K−1, 9) = (c0, c1, c2) of scipy's RotationSpline through
     the unit, unflipped keys q (K, 4) with steps dt (K−1,), all float64, into `coef`.
-    Returns the number of passes the rate iteration took (0 for two keys)."""
-    r, jm, ji, kn = _steps(q)
+    Returns the number of passes the rate iteration took (0 for two keys).
+
+    The rate iteration is scipy's: up to MAX_ITER passes, each an exact solve of the
+    system whose right side b0 − N(r_j, J(r_j)⁻¹ ω_{j+1}) comes from the last pass's
+    rates, until no rate moves by more than TOL·(1 + |ω|). The matrix is factored once."""
+    r, rr, (k1, k2, ki, j1, j2) = _steps(q)
     m = len(dt)
-    rate = np.empty((m + 1, 3))  # the body rates at the keys: the ends r_0/h_0, r_{K−2}/h_{K−2}
-    rate[0] = r[0] / dt[0]
-    rate[1:] = r / dt[:, None]  # the start of the iteration: the rates of the steps behind
+    rate = np.empty((3, m + 1))  # the body rates at the keys: the ends r_0/h_0, r_{K−2}/h_{K−2}
+    rate[:, 0] = r[:, 0] / dt[0]
+    rate[:, 1:] = r / dt  # the start of the iteration: the rates of the steps behind
     passes = 0
     n = m - 1  # unknown rates: keys 1 … K−2
     if n > 0:
+        jm = _matrix(r, rr, 1.0, -k1, k2)
+        ji = _matrix(r, rr, 1.0, 0.5, ki)
         # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹
-        band = np.zeros((n, 3, 2 * KL + 1))
-        g = 2.0 / dt[1:n, None]
+        band = np.zeros((3 * n + KL, 2 * KL + 1))
+        band[3 * n :, KL] = 1.0
+        rows = band[: 3 * n].reshape(n, 3, 2 * KL + 1)
+        g = 2.0 / dt[1:n]
         for a in range(3):
-            band[1:, a, 2 - a : 5 - a] = g * jm[1:n, a]
-            band[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
-            band[:-1, a, 8 - a : 11 - a] = g * ji[1:n, a]
-        b0 = 6.0 * (r[:-1] / dt[:-1, None] ** 2 + r[1:] / dt[1:, None] ** 2)
-        b0[0] -= 2.0 / dt[0] * (jm[0] @ rate[0])  # the known end rates, to the right side
-        b0[-1] -= 2.0 / dt[-1] * (ji[-1] @ rate[-1])
-        w = np.ascontiguousarray(rate[1:-1]).reshape(-1)
-        passes = _solve(band.reshape(3 * n, -1), b0.reshape(-1), r, kn, ji.reshape(m, 9), w)
-        rate[1:-1] = w.reshape(n, 3)
-    ws, rd, h = rate[:-1], np.einsum("kab,kb->ka", ji, rate[1:]), dt[:, None]  # ρ'(0), ρ'(h)
-    coef[:, 0:3] = (-2.0 * r + h * ws + h * rd) / h**3
-    coef[:, 3:6] = (3.0 * r - 2.0 * h * ws - h * rd) / h**2
-    coef[:, 6:9] = ws
+            rows[1:, a, 2 - a : 5 - a] = (g * jm[a, :, 1:n]).T
+            rows[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
+            rows[:-1, a, 8 - a : 11 - a] = (g * ji[a, :, 1:n]).T
+        b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
+        b0[:, 0] -= 2.0 / dt[0] * (jm[:, :, 0] @ rate[:, 0])  # the known end rates, to the right side
+        b0[:, -1] -= 2.0 / dt[-1] * (ji[:, :, -1] @ rate[:, -1])
+        # for N(r_j, ·): the matrices (polynomials in [r]×, [r]×³ = −|r|²[r]×)
+        rj, rrj, kij, j1j, j2j = r[:, :-1], rr[:-1], ki[:-1], j1[:-1], j2[:-1]
+        mats = np.concatenate([ji[:, :, :-1], _matrix(rj, rrj, 0.0, 1.0 - kij * rrj, 0.5),
+                               _matrix(rj, rrj, 0.0, j1j - rrj * (j1j * kij + 0.5 * j2j),
+                                       0.5 * j1j + j2j - rrj * j2j * kij)])
+        w = np.ascontiguousarray(rate[:, 1:-1].T).reshape(-1)
+        passes = _iterate(band, np.zeros(3 * n + 2 * KL), np.ascontiguousarray(mats.reshape(27, n).T),
+                          np.ascontiguousarray(b0.T).reshape(-1), np.ascontiguousarray(np.vstack([rj, k2[:-1]]).T), w)
+        rate[:, 1:-1] = w.reshape(n, 3).T
+    ws, h = rate[:, :-1], dt
+    c1 = _cross(r, rate[:, 1:])
+    rd = rate[:, 1:] + 0.5 * c1 + ki * _cross(r, c1)  # ρ'(h) = J(r)⁻¹ ω_{n+1}; ρ'(0) = ω_n
+    coef[:, 0:3] = ((-2.0 * r + h * ws + h * rd) / h**3).T
+    coef[:, 3:6] = ((3.0 * r - 2.0 * h * ws - h * rd) / h**2).T
+    coef[:, 6:9] = ws.T
     return passes
 
 
