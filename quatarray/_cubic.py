@@ -13,10 +13,16 @@ r_{K−2}/h_{K−2}, the interior ones solve scipy's block-tridiagonal system
 (J the right Jacobian, N its quadratic term: see :mod:`quatarray._rates`),
 whose right side depends on the rates: as scipy does, the system is solved up
 to 10 times, each time with the right side of the last rates, until no rate
-moves by more than 1e-9·(1 + |ω|). Here the block-tridiagonal matrix (3×3
-blocks, block diagonally dominant) is factored once by block elimination and
-every pass is two sweeps (:func:`_setup`, one kernel, float64 whatever the
-keys' type, as scipy computes). Then ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
+moves by more than 1e-9·(1 + |ω|). Float64 whatever the keys' type, as scipy
+computes (:func:`_setup`). What is the same for every step (the rotation
+vectors, the functions of their angles, the 3×3 matrices, all polynomials in
+[r]×) is computed with numpy, vectorised, which needs no compiling; the one
+kernel, :func:`_iterate`, does what runs along the keys: it factors the
+block-tridiagonal matrix (3×3 blocks, block diagonally dominant), held as a
+band of 11 diagonals, once by LU, and runs the passes (the right side, two
+substitutions). It is kept to few statements, since each costs compile time
+on the first call (the setup's many small 3×3 element functions cost 3 s of
+it). Then ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
 c2 = ω_n, c1 = (3r − 2hω_n − hρ'_n)/h², c0 = (−2r + hω_n + hρ'_n)/h³,
 ρ'_n = J(r_n)⁻¹ ω_{n+1}.
 
@@ -36,9 +42,8 @@ NCOEF = 9  # c0, c1, c2 of a segment
 KL = 5  # the half width of the system's band: row 3j + a couples columns 3(j − 1) … 3(j + 1) + 2
 SMALL = 0.01  # the angle below which the step coefficients take their series (see _steps)
 
-# The setup works on components: a vector field over the steps is a (3, K−1) array, a
-# matrix field (3, 3, K−1), a scalar one (K−1,), so that every numpy operation runs
-# on whole contiguous rows.
+# The numpy part works on components: a vector per step is a column of a (3, K−1) array,
+# a scalar per step a (K−1,) array, so that every operation runs on whole contiguous rows.
 
 
 def _cross(a, b):
@@ -77,15 +82,21 @@ def _steps(q):
     return r, np.einsum("ij,ij->j", r, r), (k1, k2, ki, j1, j2)
 
 
-def _matrix(r, rr, alpha, beta, gamma):
-    """α I + β [r]× + γ [r]×² (3, 3, n) for vectors r (3, n), rr = |r|²."""
-    out = gamma * r[:, None] * r[None, :]  # [r]×² = r rᵀ − |r|² I
-    for a in range(3):
-        out[a, a] += alpha - gamma * rr
-        a1, a2 = (a + 1) % 3, (a + 2) % 3
-        out[a1, a2] -= beta * r[a]
-        out[a2, a1] += beta * r[a]
-    return out
+def _matrices(r, rr, coeffs):
+    """The matrices α I + β [r]× + γ [r]×² of every step, (n, len(coeffs), 9) row-major,
+    for vectors r (3, n), rr = |r|² and `coeffs` a list of (α, β, γ) (scalars or (n,))."""
+    n = r.shape[1]
+    basis = np.zeros((n, 3, 9))  # I, [r]×, [r]×² = r rᵀ − |r|² I
+    basis[:, 0, ::4] = 1.0
+    x, y, z = r
+    basis[:, 1, 1], basis[:, 1, 2], basis[:, 1, 5] = -z, y, -x
+    basis[:, 1, 3], basis[:, 1, 6], basis[:, 1, 7] = z, -y, x
+    basis[:, 2] = (r.T[:, :, None] * r.T[:, None, :]).reshape(n, 9)
+    basis[:, 2, ::4] -= rr[:, None]
+    c = np.empty((n, len(coeffs), 3))
+    for i, abc in enumerate(coeffs):
+        c[:, i] = np.transpose(np.broadcast_arrays(*abc, rr)[:3])  # (the scalars as (n,))
+    return c @ basis
 
 
 @kernel
@@ -93,9 +104,9 @@ def _iterate(band, x, mats, b0, rk, w):
     """scipy's rate iteration on the interior rates `w` (3n,) (keys 1 … K−2, in and out;
     returns the number of passes): each pass solves the system with the right side
     b0 − N(r_j, v_j), v_j = J(r_j)⁻¹ w_j, of the last pass's rates, until no rate moves by
-    more than TOL·(1 + |w|). ``mats[j]`` holds J(r_j)⁻¹, [r_j]× J(r_j)⁻¹ and
-    (j1[r_j]× + j2[r_j]×²) J(r_j)⁻¹ row-major, ``rk[j]`` (r_j, k2), so that
-    N = (r·w)·(the third)·w + k2 (the first)·w × (the second)·w.
+    more than TOL·(1 + |w|). ``mats[j]`` holds J(r_j), J(r_j)⁻¹, [r_j]× J(r_j)⁻¹ and
+    (j1[r_j]× + j2[r_j]×²) J(r_j)⁻¹ row-major (see :func:`_setup`), ``rk[j]`` (r_j, k2),
+    so that N = (r·w)·(the fourth)·w + k2 (the second)·w × (the third)·w.
 
     `band` (N + KL, 2KL + 1) holds the matrix by diagonals, entry (i, c) at
     ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop needs a
@@ -119,7 +130,8 @@ def _iterate(band, x, mats, b0, rk, w):
         passes += 1
         for j in range(n3 // 3):
             for a in range(9):
-                y[a] = mats[j, 3 * a] * w[3 * j] + mats[j, 3 * a + 1] * w[3 * j + 1] + mats[j, 3 * a + 2] * w[3 * j + 2]
+                y[a] = (mats[j, 9 + 3 * a] * w[3 * j] + mats[j, 10 + 3 * a] * w[3 * j + 1]
+                        + mats[j, 11 + 3 * a] * w[3 * j + 2])
             dp = rk[j, 0] * w[3 * j] + rk[j, 1] * w[3 * j + 1] + rk[j, 2] * w[3 * j + 2]
             for a in range(3):
                 a1, a2 = (a + 1) % 3, (a + 2) % 3
@@ -161,28 +173,25 @@ def _setup(q, dt, coef):
     passes = 0
     n = m - 1  # unknown rates: keys 1 … K−2
     if n > 0:
-        jm = _matrix(r, rr, 1.0, -k1, k2)
-        ji = _matrix(r, rr, 1.0, 0.5, ki)
+        # J(r), J(r)⁻¹, and for N(r, ·): [r]× J(r)⁻¹, (j1[r]× + j2[r]×²) J(r)⁻¹ (all polynomials
+        # in [r]×; [r]×³ = −|r|²[r]×)
+        mats = _matrices(r, rr, [(1.0, -k1, k2), (1.0, 0.5, ki), (0.0, 1.0 - ki * rr, 0.5),
+                                 (0.0, j1 - rr * (j1 * ki + 0.5 * j2), 0.5 * j1 + j2 - rr * j2 * ki)])
         # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹
         band = np.zeros((3 * n + KL, 2 * KL + 1))
         band[3 * n :, KL] = 1.0
         rows = band[: 3 * n].reshape(n, 3, 2 * KL + 1)
-        g = 2.0 / dt[1:n]
+        g = (2.0 / dt[1:n])[:, None]
         for a in range(3):
-            rows[1:, a, 2 - a : 5 - a] = (g * jm[a, :, 1:n]).T
+            rows[1:, a, 2 - a : 5 - a] = g * mats[1:n, 0, 3 * a : 3 * a + 3]
             rows[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
-            rows[:-1, a, 8 - a : 11 - a] = (g * ji[a, :, 1:n]).T
+            rows[:-1, a, 8 - a : 11 - a] = g * mats[1:n, 1, 3 * a : 3 * a + 3]
         b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
-        b0[:, 0] -= 2.0 / dt[0] * (jm[:, :, 0] @ rate[:, 0])  # the known end rates, to the right side
-        b0[:, -1] -= 2.0 / dt[-1] * (ji[:, :, -1] @ rate[:, -1])
-        # for N(r_j, ·): the matrices (polynomials in [r]×, [r]×³ = −|r|²[r]×)
-        rj, rrj, kij, j1j, j2j = r[:, :-1], rr[:-1], ki[:-1], j1[:-1], j2[:-1]
-        mats = np.concatenate([ji[:, :, :-1], _matrix(rj, rrj, 0.0, 1.0 - kij * rrj, 0.5),
-                               _matrix(rj, rrj, 0.0, j1j - rrj * (j1j * kij + 0.5 * j2j),
-                                       0.5 * j1j + j2j - rrj * j2j * kij)])
+        b0[:, 0] -= 2.0 / dt[0] * (mats[0, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
+        b0[:, -1] -= 2.0 / dt[-1] * (mats[-1, 1].reshape(3, 3) @ rate[:, -1])
         w = np.ascontiguousarray(rate[:, 1:-1].T).reshape(-1)
-        passes = _iterate(band, np.zeros(3 * n + 2 * KL), np.ascontiguousarray(mats.reshape(27, n).T),
-                          np.ascontiguousarray(b0.T).reshape(-1), np.ascontiguousarray(np.vstack([rj, k2[:-1]]).T), w)
+        passes = _iterate(band, np.zeros(3 * n + 2 * KL), mats.reshape(m, 36),
+                          np.ascontiguousarray(b0.T).reshape(-1), np.ascontiguousarray(np.vstack([r[:, :-1], k2[:-1]]).T), w)
         rate[:, 1:-1] = w.reshape(n, 3).T
     ws, h = rate[:, :-1], dt
     c1 = _cross(r, rate[:, 1:])
