@@ -83,78 +83,55 @@ def _steps(q):
 
 
 def _matrices(r, rr, coeffs):
-    """The matrices α I + β [r]× + γ [r]×² of every step, (n, len(coeffs), 9) row-major,
-    for vectors r (3, n), rr = |r|² and `coeffs` a list of (α, β, γ) (scalars or (n,))."""
-    n = r.shape[1]
-    basis = np.zeros((n, 3, 9))  # I, [r]×, [r]×² = r rᵀ − |r|² I
-    basis[:, 0, ::4] = 1.0
-    x, y, z = r
-    basis[:, 1, 1], basis[:, 1, 2], basis[:, 1, 5] = -z, y, -x
-    basis[:, 1, 3], basis[:, 1, 6], basis[:, 1, 7] = z, -y, x
-    basis[:, 2] = (r.T[:, :, None] * r.T[:, None, :]).reshape(n, 9)
-    basis[:, 2, ::4] -= rr[:, None]
-    c = np.empty((n, len(coeffs), 3))
-    for i, abc in enumerate(coeffs):
-        c[:, i] = np.transpose(np.broadcast_arrays(*abc, rr)[:3])  # (the scalars as (n,))
-    return c @ basis
+    """The matrices α I + β [r]× + γ [r]×² of every step, (len(coeffs), 9, n) (row-major
+    entries), for vectors r (3, n), rr = |r|² and `coeffs` a list of (α, β, γ) (scalars
+    or (n,)); [r]×² = r rᵀ − |r|² I."""
+    outer = (r[:, None] * r[None]).reshape(9, -1)
+    out = np.empty((len(coeffs), 9, r.shape[1]))
+    for m, (alpha, beta, gamma) in zip(out, coeffs):
+        m[...] = gamma * outer
+        m[::4] += alpha - gamma * rr
+        bx, by, bz = beta * r
+        m[1] -= bz
+        m[2] += by
+        m[3] += bz
+        m[5] -= bx
+        m[6] -= by
+        m[7] += bx
+    return out
 
 
 @kernel
-def _iterate(band, x, mats, b0, rk, w):
-    """scipy's rate iteration on the interior rates `w` (3n,) (keys 1 … K−2, in and out;
-    returns the number of passes): each pass solves the system with the right side
-    b0 − N(r_j, v_j), v_j = J(r_j)⁻¹ w_j, of the last pass's rates, until no rate moves by
-    more than TOL·(1 + |w|). ``mats[j]`` holds J(r_j), J(r_j)⁻¹, [r_j]× J(r_j)⁻¹ and
-    (j1[r_j]× + j2[r_j]×²) J(r_j)⁻¹ row-major (see :func:`_setup`), ``rk[j]`` (r_j, k2),
-    so that N = (r·w)·(the fourth)·w + k2 (the second)·w × (the third)·w.
-
-    `band` (N + KL, 2KL + 1) holds the matrix by diagonals, entry (i, c) at
-    ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop needs a
-    bound); it is factored in place, once (LU without pivoting: the matrix is block
-    diagonally dominant; the pivots' reciprocals on the diagonal). `x` (N + 2KL,) is
-    the work vector, padded with KL zeros on both sides.
+def _banded(band, x, factor):
+    """The block-tridiagonal system held by diagonals: `band` (N + KL, 2KL + 1) holds entry
+    (i, c) at ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop
+    needs a bound). `factor`: replace it by its LU factors, in place, without pivoting
+    (the matrix is block diagonally dominant), the pivots' reciprocals on the diagonal;
+    else solve L U y = ``x[KL : KL + N]`` in place (`x` padded with KL zeros both sides).
 
     The only compiled part of the setup (the recurrences along the keys), in few
     statements: each statement of a kernel costs compile time on the first call."""
     n3 = band.shape[0] - KL
-    for i in range(n3):
-        band[i, KL] = 1.0 / band[i, KL]
-        for k in range(1, KL + 1):
-            f = band[i + k, KL - k] * band[i, KL]
-            band[i + k, KL - k] = f
-            for c in range(1, KL + 1):
-                band[i + k, KL - k + c] -= f * band[i, KL + c]
-    y = np.empty(9)
-    passes = 0
-    while passes < MAX_ITER:
-        passes += 1
-        for j in range(n3 // 3):
-            for a in range(9):
-                y[a] = (mats[j, 9 + 3 * a] * w[3 * j] + mats[j, 10 + 3 * a] * w[3 * j + 1]
-                        + mats[j, 11 + 3 * a] * w[3 * j + 2])
-            dp = rk[j, 0] * w[3 * j] + rk[j, 1] * w[3 * j + 1] + rk[j, 2] * w[3 * j + 2]
-            for a in range(3):
-                a1, a2 = (a + 1) % 3, (a + 2) % 3
-                x[KL + 3 * j + a] = b0[3 * j + a] - dp * y[6 + a] - rk[j, 3] * (y[a1] * y[3 + a2] - y[a2] * y[3 + a1])
-        # the substitutions, the nearest neighbour last (each row then waits for the one
-        # before by one multiply-add)
+    if factor:
         for i in range(n3):
-            e = x[KL + i]
-            for c in range(KL, 0, -1):
-                e -= band[i, KL - c] * x[KL + i - c]
-            x[KL + i] = e
-        done = True
-        for i in range(n3 - 1, -1, -1):
-            e = x[KL + i]
-            for c in range(KL, 0, -1):
-                e -= band[i, KL + c] * x[KL + i + c]
-            e *= band[i, KL]
-            x[KL + i] = e
-            done &= abs(e - w[i]) < TOL * (1.0 + abs(e))
-            w[i] = e
-        if done:
-            break
-    return passes
+            band[i, KL] = 1.0 / band[i, KL]
+            for k in range(1, KL + 1):
+                f = band[i + k, KL - k] * band[i, KL]
+                band[i + k, KL - k] = f
+                for c in range(1, KL + 1):
+                    band[i + k, KL - k + c] -= f * band[i, KL + c]
+        return
+    # the nearest neighbour last: each row then waits for the one before by one multiply-add
+    for i in range(n3):
+        e = x[KL + i]
+        for c in range(KL, 0, -1):
+            e -= band[i, KL - c] * x[KL + i - c]
+        x[KL + i] = e
+    for i in range(n3 - 1, -1, -1):
+        e = x[KL + i]
+        for c in range(KL, 0, -1):
+            e -= band[i, KL + c] * x[KL + i + c]
+        x[KL + i] = e * band[i, KL]
 
 
 def _setup(q, dt, coef):
@@ -181,18 +158,31 @@ def _setup(q, dt, coef):
         band = np.zeros((3 * n + KL, 2 * KL + 1))
         band[3 * n :, KL] = 1.0
         rows = band[: 3 * n].reshape(n, 3, 2 * KL + 1)
-        g = (2.0 / dt[1:n])[:, None]
+        g = 2.0 / dt[1:n]
         for a in range(3):
-            rows[1:, a, 2 - a : 5 - a] = g * mats[1:n, 0, 3 * a : 3 * a + 3]
+            rows[1:, a, 2 - a : 5 - a] = (g * mats[0, 3 * a : 3 * a + 3, 1:n]).T
             rows[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
-            rows[:-1, a, 8 - a : 11 - a] = g * mats[1:n, 1, 3 * a : 3 * a + 3]
+            rows[:-1, a, 8 - a : 11 - a] = (g * mats[1, 3 * a : 3 * a + 3, 1:n]).T
         b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
-        b0[:, 0] -= 2.0 / dt[0] * (mats[0, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
-        b0[:, -1] -= 2.0 / dt[-1] * (mats[-1, 1].reshape(3, 3) @ rate[:, -1])
-        w = np.ascontiguousarray(rate[:, 1:-1].T).reshape(-1)
-        passes = _iterate(band, np.zeros(3 * n + 2 * KL), mats.reshape(m, 36),
-                          np.ascontiguousarray(b0.T).reshape(-1), np.ascontiguousarray(np.vstack([r[:, :-1], k2[:-1]]).T), w)
-        rate[:, 1:-1] = w.reshape(n, 3).T
+        b0[:, 0] -= 2.0 / dt[0] * (mats[0, :, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
+        b0[:, -1] -= 2.0 / dt[-1] * (mats[1, :, -1].reshape(3, 3) @ rate[:, -1])
+        x = np.zeros(3 * n + 2 * KL)
+        _banded(band, x, True)
+        # N(r_j, v) = (r·ω)(j1[r]× + j2[r]×²) v + k2 v × [r]× v, v = J(r_j)⁻¹ω (r·v = r·ω): the three
+        # matrices applied to ω at once, each pass
+        m3 = mats[1:, :, :-1].reshape(9, 3, n)
+        rj, k2j = r[:, :-1], k2[:-1]
+        w = rate[:, 1:-1]
+        sol = x[KL : KL + 3 * n].reshape(n, 3).T
+        while passes < MAX_ITER:
+            passes += 1
+            y = np.einsum("abj,bj->aj", m3, w)
+            sol[...] = b0 - (np.einsum("aj,aj->j", rj, w) * y[6:] + k2j * _cross(y[:3], y[3:6]))
+            _banded(band, x, False)
+            done = np.all(np.abs(sol - w) < TOL * (1.0 + np.abs(sol)))
+            w[...] = sol
+            if done:
+                break
     ws, h = rate[:, :-1], dt
     c1 = _cross(r, rate[:, 1:])
     rd = rate[:, 1:] + 0.5 * c1 + ki * _cross(r, c1)  # ρ'(h) = J(r)⁻¹ ω_{n+1}; ρ'(0) = ω_n
