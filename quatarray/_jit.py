@@ -66,7 +66,7 @@ import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core.registry import CPUDispatcher
-from numba.extending import intrinsic, overload
+from numba.extending import intrinsic, lower_builtin, overload, type_callable
 
 CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
@@ -75,6 +75,7 @@ PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
 _OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy")
 
 prange = numba.prange
+_ELEMENT = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 # jit_options of an ``@overload`` that LLVM inlines into every caller (see ``inline``)
 INLINE_OPTIONS = {"cache": CACHE, "forceinline": True}
 
@@ -101,7 +102,7 @@ def _njit(fn, **options):
 
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn)
+    return _njit(fn, **_ELEMENT)
 
 
 def inline(fn):
@@ -111,7 +112,7 @@ def inline(fn):
     vectoriser; use this for the per-row math of loops that must run as SIMD
     (see the module docstring).
     """
-    return _njit(fn, forceinline=True)
+    return _njit(fn, forceinline=True, **_ELEMENT)
 
 
 def ir_inline(fn):
@@ -273,22 +274,21 @@ def like(x, c):
     return c
 
 
-@overload(like, jit_options={"cache": CACHE})
-def _like(x, c):
-    if isinstance(x, types.Float):
-        ftype = np.dtype(str(x)).type
+@type_callable(like)
+def _type_like(context):
+    # typed and lowered directly (a cast), not an @overload: an overload is a
+    # whole numba compile for each pair of argument types it meets
+    def typer(x, c):
+        ftype = x.dtype if isinstance(x, types.Array) else x
+        if isinstance(ftype, types.Float) and isinstance(types.unliteral(c), (types.Number, types.Boolean)):
+            return ftype
 
-        def impl(x, c):
-            return ftype(c)
+    return typer
 
-        return impl
-    if isinstance(x, types.Array) and isinstance(x.dtype, types.Float):
-        ftype = np.dtype(str(x.dtype)).type
 
-        def impl(x, c):
-            return ftype(c)
-
-        return impl
+@lower_builtin(like, types.Any, types.Any)
+def _lower_like(context, builder, sig, args):
+    return context.cast(builder, args[1], types.unliteral(sig.args[1]), sig.return_type)
 
 
 def flat_rows(a):
