@@ -764,7 +764,7 @@ _PIECES = {
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
 _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
-                                  inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
+                                  ir_inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
           for name, m in TABLED.items() for order in (1, 2)}
 _EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", inline(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}
