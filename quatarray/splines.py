@@ -539,13 +539,10 @@ def _resample_cubic(t, nt, q, order):
     return out.reshape(nt.shape + (width,))
 
 
-@kernel
-def _n_outside(lo, hi, x):
-    """How many x are not within [lo, hi] (nan included)."""
-    c = 0
-    for i in range(x.shape[0]):
-        c += not (x[i] >= lo and x[i] <= hi)
-    return c
+def _outside(lo, hi, x):
+    """True when some x is not within [lo, hi] (nan included: numpy's min and max
+    propagate it). Two vectorised reductions: no kernel to compile."""
+    return x.size > 0 and not (x.min() >= lo and x.max() <= hi)
 
 
 def seconds(t_raw, nt_raw, origin):
@@ -571,7 +568,7 @@ def plan_times(t_raw, nt_raw, index0=0, origin=None):
         raise TypeError(f"Expected `new_times` to have a real dtype, got {nt_raw.dtype}.")
     t, nt = seconds(t_raw, nt_raw, t_raw[0] if origin is None else origin)
     flat_nt = np.ascontiguousarray(nt.reshape(-1))
-    if _n_outside(t[0], t[-1], flat_nt):
+    if _outside(t[0], t[-1], flat_nt):
         i = int(np.argmax(~((flat_nt >= t[0]) & (flat_nt <= t[-1]))))
         raise ValueError(
             f"Expected `new_times` within [{t_raw[0].item()}, {t_raw[-1].item()}] (the key times), "
