@@ -75,7 +75,6 @@ PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
 _OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy")
 
 prange = numba.prange
-_ELEMENT = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 # jit_options of an ``@overload`` that LLVM inlines into every caller (see ``inline``)
 INLINE_OPTIONS = {"cache": CACHE, "forceinline": True}
 
@@ -102,7 +101,7 @@ def _njit(fn, **options):
 
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn, **_ELEMENT)
+    return _njit(fn)
 
 
 def inline(fn):
@@ -112,7 +111,7 @@ def inline(fn):
     vectoriser; use this for the per-row math of loops that must run as SIMD
     (see the module docstring).
     """
-    return _njit(fn, forceinline=True, **_ELEMENT)
+    return _njit(fn, forceinline=True)
 
 
 def ir_inline(fn):
