@@ -302,12 +302,17 @@ def cases(n, seed=0):
     c.add("quatarray", lambda: clip.resample(rate=2 / clip.frame_time))
 
     # --- conversions
-    c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p))
+    c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p),
+             note="a new array: its fresh pages cost the system's zeroing (see the out= row)")
     c.add("scipy", lambda: rp.as_matrix())
     if npq is not None:
         c.add("numpy-quaternion", lambda: npq.as_rotation_matrix(P))
     if qn is not None:
         c.add("quaternionic", lambda: QP.to_rotation_matrix)
+    # the same kernel into an existing array: what the kernel itself reaches
+    o33 = np.empty_like(m)
+    c = case("as_matrix (out=)", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p, out=o33))
+    c.add("scipy", lambda: rp.as_matrix())
 
     # numpy-quaternion's and quaternionic's general (non-orthogonal) path solves an
     # eigenproblem per matrix in Python: far too slow to time at this n.
