@@ -22,7 +22,9 @@ Kernel layers
 ``element``
     Per-element math on scalars and tuples (one quaternion, one vector).
     The default for element functions: compiled once as its own function
-    (an LLVM call from the loop that uses it), cached, and cheap to compile.
+    (an LLVM call from the loop that uses it), cached, and cheap to compile:
+    without the CPython and C wrappers (:data:`NO_WRAPPERS`), which only calls
+    from Python need (those run a wrapped twin, :class:`_Element`).
 ``inline``
     Like ``element`` (compiled once per signature, cached) but marked
     ``alwaysinline`` for LLVM (numba's ``forceinline``), so every caller gets
@@ -91,17 +93,41 @@ class _Dispatcher(CPUDispatcher):
         return super().get_call_template(args, kws)
 
 
-def _njit(fn, **options):
-    """``numba.njit(**_OPTIONS, **options)(fn)`` with the :class:`_Dispatcher` rule."""
+# The CPython wrapper (boxing and unboxing the arguments and the result) and the
+# C-callable wrapper of a compiled function serve only calls from Python and cfunc
+# pointers; a kernel calls the function itself. Element functions are compiled
+# without them: for tuple arguments the wrappers are most of a small function's
+# code, and leaving them out cut the first calls of the VQS, interpolate and
+# align_vectors warm-up entries by 0.3-1 s CPU each (about 0.03 s per function).
+NO_WRAPPERS = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+
+
+class _Element(_Dispatcher):
+    """The dispatcher of an element function (:data:`NO_WRAPPERS`). A call from
+    Python (a test, a REPL) runs a twin compiled with the wrappers, in memory only
+    (one on-disk cache index serves both, and the twin's code must not be taken
+    for the element's or the other way round); the kernels never go this way."""
+
+    def __call__(self, *args, **kws):
+        twin = self.__dict__.get("_python_twin")
+        if twin is None:
+            keep = {k: v for k, v in self.targetoptions.items() if k not in NO_WRAPPERS and k != "nopython"}
+            twin = self.__dict__["_python_twin"] = numba.njit(**keep)(self.py_func)
+        return twin(*args, **kws)
+
+
+def _njit(fn, cls=_Dispatcher, **options):
+    """``numba.njit(**_OPTIONS, **options)(fn)`` with the :class:`_Dispatcher` rule
+    (`cls`: that class or a subclass)."""
     d = numba.njit(**_OPTIONS, **options)(fn)
     if isinstance(d, CPUDispatcher):  # not the plain function of NUMBA_DISABLE_JIT=1
-        d.__class__ = _Dispatcher  # the same object layout: only the call typing differs
+        d.__class__ = cls  # the same object layout: only the call typing differs
     return d
 
 
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn)
+    return _njit(fn, _Element, **NO_WRAPPERS)
 
 
 def inline(fn):
@@ -111,7 +137,7 @@ def inline(fn):
     vectoriser; use this for the per-row math of loops that must run as SIMD
     (see the module docstring).
     """
-    return _njit(fn, forceinline=True)
+    return _njit(fn, _Element, forceinline=True, **NO_WRAPPERS)
 
 
 def ir_inline(fn):
