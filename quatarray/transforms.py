@@ -31,6 +31,7 @@ from ._access import load33, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
+from ._slerp import slerp4
 from .conversions import from_matrix
 
 _F64 = np.dtype(np.float64)
@@ -206,22 +207,30 @@ def _matrix_vqm(v, q, m, out):
         _store_homogeneous(out, i, matmul(E.qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
 
 
+@inline
+def _interp_vq(va, qa, vb, qb, t, vo, qo, i):
+    # v by lerp (exact at both ends), q by slerp of the normalised quaternions along
+    # the shorter arc (algebra.normalize, then interpolation.slerp: the same formulas)
+    u = like(t, 1.0) - t
+    E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t)))
+    E.store4(qo, i, slerp4(E.qnormalize(E.load4(qa, i)), E.qnormalize(E.load4(qb, i)), t, like(t, 1.0)))
+    return u
+
+
 @rowloop
-def _lerp_vs(va, sa, vb, sb, t, vo, so):
-    # v by lerp (exact at both ends), s by elerp s_a (s_b/s_a)^t = s_a^(1−t) s_b^t.
+def _interp_vqs(va, qa, sa, vb, qb, sb, t, vo, qo, so):
+    # s by elerp s_a (s_b/s_a)^t = s_a^(1−t) s_b^t
     for i in prange(va.shape[0]):
         t_ = t[i]
-        u = like(t_, 1.0) - t_
-        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
+        u = _interp_vq(va, qa, vb, qb, t_, vo, qo, i)
         so[i] = sa[i] ** u * sb[i] ** t_
 
 
 @rowloop
-def _lerp_vm(va, ma, vb, mb, t, vo, mo):
+def _interp_vqm(va, qa, ma, vb, qb, mb, t, vo, qo, mo):
     for i in prange(va.shape[0]):
         t_ = t[i]
-        u = like(t_, 1.0) - t_
-        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
+        u = _interp_vq(va, qa, vb, qb, t_, vo, qo, i)
         store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
 
 
@@ -248,6 +257,38 @@ def _freeze(*arrays):
     for a in arrays:
         a.flags.writeable = False
     return arrays
+
+
+DENSE_ROWS = 1 << 16  # batches up to this size pass broadcast inputs to the kernels as copies
+
+
+def _frozen(a, n):
+    """Input `a` of a kernel over `n` rows as the kernels are compiled for: read-only
+    and C-contiguous (broadcast or strided inputs copied, up to :data:`DENSE_ROWS`
+    rows). The container's parts are so already; points and t get a read-only
+    view. One signature per dtype then serves every small call (a broadcast input
+    would compile the kernel once more for strided arrays, and a writeable one once
+    more); larger broadcasts keep their strides (a copy would cost more than the
+    kernel) and compile that variant."""
+    if not a.flags.c_contiguous:
+        if n > DENSE_ROWS:
+            return a
+        a = np.array(a, order="C")
+    elif a.flags.writeable:
+        a = a.view()
+    a.flags.writeable = False
+    return a
+
+
+def _run(kernel, inputs, out_cores, out=None, result=None):
+    """``elementwise(kernel, ...)`` with the inputs :func:`_frozen`."""
+    k = len(inputs)
+
+    def call(*arrays):
+        n = arrays[0].shape[0]
+        return kernel(*[_frozen(a, n) for a in arrays[:k]], *arrays[k:])
+
+    return elementwise(call, inputs, out_cores, out, result=result)
 
 
 def _default_rtol(dtype):
@@ -521,10 +562,10 @@ class _Transform:
             t = np.ascontiguousarray(h[:3, 3])
             if p.shape[:-1] != lead:
                 p = np.broadcast_to(p, lead + (3,))
-            return elementwise(
+            return _run(
                 lambda pp, oo: _apply_affine(pp, a, t, oo), [(p, "points", (3,))], [(3,)], out, result=dtype
             )
-        return elementwise(self._apply_kernel, self._parts() + [(p, "points", (3,))], [(3,)], out, result=dtype)
+        return _run(self._apply_kernel, self._parts() + [(p, "points", (3,))], [(3,)], out, result=dtype)
 
     def _single(self):
         """The single transform of a size-1 batch, with shape ``()`` (internal helper)."""
@@ -547,7 +588,7 @@ class _Transform:
             a, b = a._as_vqm(), b._as_vqm()
         _broadcast([a.shape, b.shape], "the two transforms")
         parts = a._parts() + b._parts()
-        v, q, x = elementwise(a._compose_kernel, parts, [(3,), (4,), a._core])
+        v, q, x = _run(a._compose_kernel, parts, [(3,), (4,), a._core])
         return type(a)._new(*_as_arrays(v, q, x))
 
     def __matmul__(self, other):
@@ -567,7 +608,7 @@ class _Transform:
 
     def as_matrix(self):
         """4×4 homogeneous matrices ``[[R(q) M, v], [0, 0, 0, 1]]``, shape ``(..., 4, 4)``."""
-        out = elementwise(self._matrix_kernel, self._parts(), [(4, 4)])
+        out = _run(self._matrix_kernel, self._parts(), [(4, 4)])
         return np.asarray(out)
 
 
@@ -659,7 +700,7 @@ class VQS(_Transform):
         >>> np.allclose(T.inverse().apply(T.apply([5, 6, 7])), [5, 6, 7])
         True
         """
-        v, q, s = elementwise(_inverse_vqs, self._parts(), [(3,), (4,), ()])
+        v, q, s = _run(_inverse_vqs, self._parts(), [(3,), (4,), ()])
         return VQS._new(*_as_arrays(v, q, s))
 
     def as_matrix(self):
@@ -784,7 +825,7 @@ class VQM(_Transform):
         >>> np.allclose(T.inverse().apply(T.apply([5, 6, 7])), [5, 6, 7])
         True
         """
-        v, q, m, ratio = elementwise(_inverse_vqm, self._parts(), [(3,), (4,), (3, 3), ()])
+        v, q, m, ratio = _run(_inverse_vqm, self._parts(), [(3,), (4,), (3, 3), ()])
         ratio = np.asarray(ratio).reshape(-1)
         bad = np.flatnonzero(~(ratio > 16 * np.finfo(self.dtype).eps) & ~np.isnan(ratio))
         if bad.size:
@@ -862,23 +903,19 @@ def interpolate(a, b, t):
     >>> h.v.tolist(), float(h.s), np.allclose(h.q, qa.from_rotvec([0, 0, np.pi / 4]))
     ([1.0, 0.0, 0.0], 2.0, True)
     """
-    from .algebra import normalize
-    from .interpolation import slerp
-
     for x, nm in ((a, "a"), (b, "b")):
         if not isinstance(x, _Transform):
             raise TypeError(f"Expected `{nm}` to be a VQS or VQM, got {type(x).__name__}.")
     if type(a) is not type(b):
         a, b = a._as_vqm(), b._as_vqm()
     tt = as_float(t, "t")
-    _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
-    kernel = _lerp_vm if isinstance(a, VQM) else _lerp_vs
-    v, x = elementwise(
-        kernel,
-        [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (t, "t", ())],
-        [(3,), a._core],
-    )
-    v, x = _as_arrays(v, x)
-    q = np.asarray(slerp(normalize(a._q), normalize(b._q), t), dtype=v.dtype)
-    q = np.array(np.broadcast_to(q, v.shape[:-1] + (4,)))
-    return type(a)._new(v, q, x)
+    lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
+    dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
+    # t contiguous whatever the size (one value a row: the copy is cheap, and the
+    # loop runs at half speed on a broadcast t)
+    tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)
+    if not tt.flags.c_contiguous:
+        tt = np.array(tt, order="C")  # (not ascontiguousarray: it makes a 0-d t 1-d)
+    kernel = _interp_vqm if isinstance(a, VQM) else _interp_vqs
+    v, q, x = _run(kernel, a._parts() + b._parts() + [(tt, "t", ())], [(3,), (4,), a._core], result=dtype)
+    return type(a)._new(*_as_arrays(v, q, x))
