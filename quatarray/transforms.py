@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load33, store33
+from ._access import load1, load4, load33, store4, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
@@ -207,31 +207,47 @@ def _matrix_vqm(v, q, m, out):
         _store_homogeneous(out, i, matmul(E.qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
 
 
-@inline
-def _interp_vq(va, qa, vb, qb, t, vo, qo, i):
-    # v by lerp (exact at both ends), q by slerp of the normalised quaternions along
-    # the shorter arc (algebra.normalize, then interpolation.slerp: the same formulas)
-    u = like(t, 1.0) - t
-    E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t)))
-    E.store4(qo, i, slerp4(E.qnormalize(E.load4(qa, i)), E.qnormalize(E.load4(qb, i)), t, like(t, 1.0)))
-    return u
-
-
 @rowloop
-def _interp_vqs(va, qa, sa, vb, qb, sb, t, vo, qo, so):
-    # s by elerp s_a (s_b/s_a)^t = s_a^(1−t) s_b^t
+def _lerp_vs(va, sa, vb, sb, t, vo, so):
+    # v by lerp (exact at both ends), s by elerp s_a (s_b/s_a)^t = s_a^(1−t) s_b^t.
     for i in prange(va.shape[0]):
         t_ = t[i]
-        u = _interp_vq(va, qa, vb, qb, t_, vo, qo, i)
+        u = like(t_, 1.0) - t_
+        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
         so[i] = sa[i] ** u * sb[i] ** t_
 
 
 @rowloop
-def _interp_vqm(va, qa, ma, vb, qb, mb, t, vo, qo, mo):
+def _lerp_vm(va, ma, vb, mb, t, vo, mo):
     for i in prange(va.shape[0]):
         t_ = t[i]
-        u = _interp_vq(va, qa, vb, qb, t_, vo, qo, i)
+        u = like(t_, 1.0) - t_
+        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
         store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
+
+
+@inline
+def _unit(q):
+    """:func:`quatarray._elements.qnormalize` written out (the same bits), so the loop vectorises."""
+    a = E.qscaled(q)[0]
+    n = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+    return (a[0] / n, a[1] / n, a[2] / n, a[3] / n)
+
+
+ROWS = 1024  # rows per block: prange runs over blocks, LLVM vectorises the inner loop
+
+
+@rowloop(rows=2)
+def _slerp_units(p, q, t, out):
+    # p, q, out flat (4n,), t (n,): slerp of the normalised p and q along the shorter arc
+    # (algebra.normalize, then interpolation.slerp: the same formulas, one pass)
+    n = t.shape[0]
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k
+            ti = load1(t, i)
+            store4(out, i, slerp4(_unit(load4(p, i)), _unit(load4(q, i)), ti, like(ti, 1.0)))
 
 
 # --------------------------------------------------------------------------
@@ -257,38 +273,6 @@ def _freeze(*arrays):
     for a in arrays:
         a.flags.writeable = False
     return arrays
-
-
-DENSE_ROWS = 1 << 16  # batches up to this size pass broadcast inputs to the kernels as copies
-
-
-def _frozen(a, n):
-    """Input `a` of a kernel over `n` rows as the kernels are compiled for: read-only
-    and C-contiguous (broadcast or strided inputs copied, up to :data:`DENSE_ROWS`
-    rows). The container's parts are so already; points and t get a read-only
-    view. One signature per dtype then serves every small call (a broadcast input
-    would compile the kernel once more for strided arrays, and a writeable one once
-    more); larger broadcasts keep their strides (a copy would cost more than the
-    kernel) and compile that variant."""
-    if not a.flags.c_contiguous:
-        if n > DENSE_ROWS:
-            return a
-        a = np.array(a, order="C")
-    elif a.flags.writeable:
-        a = a.view()
-    a.flags.writeable = False
-    return a
-
-
-def _run(kernel, inputs, out_cores, out=None, result=None):
-    """``elementwise(kernel, ...)`` with the inputs :func:`_frozen`."""
-    k = len(inputs)
-
-    def call(*arrays):
-        n = arrays[0].shape[0]
-        return kernel(*[_frozen(a, n) for a in arrays[:k]], *arrays[k:])
-
-    return elementwise(call, inputs, out_cores, out, result=result)
 
 
 def _default_rtol(dtype):
@@ -562,10 +546,10 @@ class _Transform:
             t = np.ascontiguousarray(h[:3, 3])
             if p.shape[:-1] != lead:
                 p = np.broadcast_to(p, lead + (3,))
-            return _run(
+            return elementwise(
                 lambda pp, oo: _apply_affine(pp, a, t, oo), [(p, "points", (3,))], [(3,)], out, result=dtype
             )
-        return _run(self._apply_kernel, self._parts() + [(p, "points", (3,))], [(3,)], out, result=dtype)
+        return elementwise(self._apply_kernel, self._parts() + [(p, "points", (3,))], [(3,)], out, result=dtype)
 
     def _single(self):
         """The single transform of a size-1 batch, with shape ``()`` (internal helper)."""
@@ -588,7 +572,7 @@ class _Transform:
             a, b = a._as_vqm(), b._as_vqm()
         _broadcast([a.shape, b.shape], "the two transforms")
         parts = a._parts() + b._parts()
-        v, q, x = _run(a._compose_kernel, parts, [(3,), (4,), a._core])
+        v, q, x = elementwise(a._compose_kernel, parts, [(3,), (4,), a._core])
         return type(a)._new(*_as_arrays(v, q, x))
 
     def __matmul__(self, other):
@@ -608,7 +592,7 @@ class _Transform:
 
     def as_matrix(self):
         """4×4 homogeneous matrices ``[[R(q) M, v], [0, 0, 0, 1]]``, shape ``(..., 4, 4)``."""
-        out = _run(self._matrix_kernel, self._parts(), [(4, 4)])
+        out = elementwise(self._matrix_kernel, self._parts(), [(4, 4)])
         return np.asarray(out)
 
 
@@ -700,7 +684,7 @@ class VQS(_Transform):
         >>> np.allclose(T.inverse().apply(T.apply([5, 6, 7])), [5, 6, 7])
         True
         """
-        v, q, s = _run(_inverse_vqs, self._parts(), [(3,), (4,), ()])
+        v, q, s = elementwise(_inverse_vqs, self._parts(), [(3,), (4,), ()])
         return VQS._new(*_as_arrays(v, q, s))
 
     def as_matrix(self):
@@ -825,7 +809,7 @@ class VQM(_Transform):
         >>> np.allclose(T.inverse().apply(T.apply([5, 6, 7])), [5, 6, 7])
         True
         """
-        v, q, m, ratio = _run(_inverse_vqm, self._parts(), [(3,), (4,), (3, 3), ()])
+        v, q, m, ratio = elementwise(_inverse_vqm, self._parts(), [(3,), (4,), (3, 3), ()])
         ratio = np.asarray(ratio).reshape(-1)
         bad = np.flatnonzero(~(ratio > 16 * np.finfo(self.dtype).eps) & ~np.isnan(ratio))
         if bad.size:
@@ -912,10 +896,19 @@ def interpolate(a, b, t):
     lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
     dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
     # t contiguous whatever the size (one value a row: the copy is cheap, and the
-    # loop runs at half speed on a broadcast t)
+    # loops run at half speed on a broadcast t)
     tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)
     if not tt.flags.c_contiguous:
         tt = np.array(tt, order="C")  # (not ascontiguousarray: it makes a 0-d t 1-d)
-    kernel = _interp_vqm if isinstance(a, VQM) else _interp_vqs
-    v, q, x = _run(kernel, a._parts() + b._parts() + [(tt, "t", ())], [(3,), (4,), a._core], result=dtype)
+    kernel = _lerp_vm if isinstance(a, VQM) else _lerp_vs
+    parts = [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (tt, "t", ())]
+    v, x = elementwise(kernel, parts, [(3,), a._core], result=dtype)
+    q = elementwise(_slerp_flat, [(a._q, "q", (4,)), (b._q, "q", (4,)), (tt, "t", ())], [(4,)], result=dtype)
     return type(a)._new(*_as_arrays(v, q, x))
+
+
+def _slerp_flat(p, q, t, out):
+    """:func:`_slerp_units` on ``(n, 4)`` rows, passed as flat ``(4n,)`` arrays (copies
+    of broadcast or strided inputs), as interpolation.slerp does."""
+    p, q = (np.ascontiguousarray(x).reshape(-1) for x in (p, q))
+    _slerp_units(p, q, t, out.reshape(-1))
