@@ -424,6 +424,8 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
             for x in (q2, r2, s2):
                 x.fill(np.nan)
         else:
+            if not w2.flags.c_contiguous:  # the default or broadcast weights: one compiled signature serves
+                w2 = np.ascontiguousarray(w2)
             flags = np.zeros(a2.shape[0], np.uint8)
             _align(a2, b2, w2, q2, r2, s2, flags, np.empty((-(-a2.shape[0] // ALIGN_BLOCK), 32)))
         fixed = np.flatnonzero((flags & (_FIXED | _ZERO_PRIMARY)) == _FIXED)

@@ -896,10 +896,11 @@ def interpolate(a, b, t):
     lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
     dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
     # t contiguous whatever the size (one value a row: the copy is cheap, and the
-    # loops run at half speed on a broadcast t)
-    tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)
+    # loops run at half speed on a broadcast t), and read-only like the parts, so
+    # that one compiled signature serves every t
+    tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)  # a read-only view
     if not tt.flags.c_contiguous:
-        tt = np.array(tt, order="C")  # (not ascontiguousarray: it makes a 0-d t 1-d)
+        tt = _read_only(np.array(tt, order="C"))  # (not ascontiguousarray: it makes a 0-d t 1-d)
     kernel = _lerp_vm if isinstance(a, VQM) else _lerp_vs
     parts = [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (tt, "t", ())]
     v, x = elementwise(kernel, parts, [(3,), a._core], result=dtype)
@@ -910,5 +911,12 @@ def interpolate(a, b, t):
 def _slerp_flat(p, q, t, out):
     """:func:`_slerp_units` on ``(n, 4)`` rows, passed as flat ``(4n,)`` arrays (copies
     of broadcast or strided inputs), as interpolation.slerp does."""
-    p, q = (np.ascontiguousarray(x).reshape(-1) for x in (p, q))
+    p, q = (_read_only(np.ascontiguousarray(x).reshape(-1)) for x in (p, q))
     _slerp_units(p, q, t, out.reshape(-1))
+
+
+def _read_only(a):
+    """`a` (a copy or view of the container's read-only parts) made read-only: the
+    kernels see one type whether the input was copied or not."""
+    a.flags.writeable = False
+    return a
