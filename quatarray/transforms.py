@@ -27,11 +27,10 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load1, load4, load33, store4, store33
+from ._access import load33, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
-from ._slerp import slerp4
 from .conversions import from_matrix
 
 _F64 = np.dtype(np.float64)
@@ -224,30 +223,6 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
         u = like(t_, 1.0) - t_
         E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
         store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
-
-
-@inline
-def _unit(q):
-    """:func:`quatarray._elements.qnormalize` written out (the same bits), so the loop vectorises."""
-    a = E.qscaled(q)[0]
-    n = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-    return (a[0] / n, a[1] / n, a[2] / n, a[3] / n)
-
-
-ROWS = 1024  # rows per block: prange runs over blocks, LLVM vectorises the inner loop
-
-
-@rowloop(rows=2)
-def _slerp_units(p, q, t, out):
-    # p, q, out flat (4n,), t (n,): slerp of the normalised p and q along the shorter arc
-    # (algebra.normalize, then interpolation.slerp: the same formulas, one pass)
-    n = t.shape[0]
-    for blk in prange((n + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        for k in range(min(n - lo, ROWS)):
-            i = lo + k
-            ti = load1(t, i)
-            store4(out, i, slerp4(_unit(load4(p, i)), _unit(load4(q, i)), ti, like(ti, 1.0)))
 
 
 # --------------------------------------------------------------------------
@@ -892,31 +867,27 @@ def interpolate(a, b, t):
             raise TypeError(f"Expected `{nm}` to be a VQS or VQM, got {type(x).__name__}.")
     if type(a) is not type(b):
         a, b = a._as_vqm(), b._as_vqm()
+    from .algebra import normalize
+    from .interpolation import slerp
+
     tt = as_float(t, "t")
     lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
     dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
     # t contiguous whatever the size (one value a row: the copy is cheap, and the
     # loops run at half speed on a broadcast t), and read-only like the parts, so
-    # that one compiled signature serves every t
+    # that one compiled lerp serves every t
     tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)  # a read-only view
     if not tt.flags.c_contiguous:
         tt = _read_only(np.array(tt, order="C"))  # (not ascontiguousarray: it makes a 0-d t 1-d)
     kernel = _lerp_vm if isinstance(a, VQM) else _lerp_vs
     parts = [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (tt, "t", ())]
     v, x = elementwise(kernel, parts, [(3,), a._core], result=dtype)
-    q = elementwise(_slerp_flat, [(a._q, "q", (4,)), (b._q, "q", (4,)), (tt, "t", ())], [(4,)], result=dtype)
+    q = slerp(normalize(a._q), normalize(b._q), tt)
     return type(a)._new(*_as_arrays(v, q, x))
 
 
-def _slerp_flat(p, q, t, out):
-    """:func:`_slerp_units` on ``(n, 4)`` rows, passed as flat ``(4n,)`` arrays (copies
-    of broadcast or strided inputs), as interpolation.slerp does."""
-    p, q = (_read_only(np.ascontiguousarray(x).reshape(-1)) for x in (p, q))
-    _slerp_units(p, q, t, out.reshape(-1))
-
-
 def _read_only(a):
-    """`a` (a copy or view of the container's read-only parts) made read-only: the
-    kernels see one type whether the input was copied or not."""
+    """`a` (a copy made here) made read-only like the container's parts: the
+    kernels then see one type whether an input was copied or not."""
     a.flags.writeable = False
     return a
