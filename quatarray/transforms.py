@@ -862,20 +862,20 @@ def interpolate(a, b, t):
     >>> h.v.tolist(), float(h.s), np.allclose(h.q, qa.from_rotvec([0, 0, np.pi / 4]))
     ([1.0, 0.0, 0.0], 2.0, True)
     """
+    from .algebra import normalize
+    from .interpolation import slerp
+
     for x, nm in ((a, "a"), (b, "b")):
         if not isinstance(x, _Transform):
             raise TypeError(f"Expected `{nm}` to be a VQS or VQM, got {type(x).__name__}.")
     if type(a) is not type(b):
         a, b = a._as_vqm(), b._as_vqm()
-    from .algebra import normalize
-    from .interpolation import slerp
-
     tt = as_float(t, "t")
     lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
     dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
-    # t contiguous whatever the size (one value a row: the copy is cheap, and the
-    # loops run at half speed on a broadcast t), and read-only like the parts, so
-    # that one compiled lerp serves every t
+    # t contiguous (a copy of one value a row where it broadcasts) and read-only like
+    # the parts: one compiled lerp serves array, scalar and broadcast t (a strided or
+    # writeable t compiled it once more each)
     tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)  # a read-only view
     if not tt.flags.c_contiguous:
         tt = _read_only(np.array(tt, order="C"))  # (not ascontiguousarray: it makes a 0-d t 1-d)
