@@ -13,10 +13,17 @@ r_{K−2}/h_{K−2}, the interior ones solve scipy's block-tridiagonal system
 (J the right Jacobian, N its quadratic term: see :mod:`quatarray._rates`),
 whose right side depends on the rates: as scipy does, the system is solved up
 to 10 times, each time with the right side of the last rates, until no rate
-moves by more than 1e-9·(1 + |ω|). Here the block-tridiagonal matrix (3×3
-blocks, block diagonally dominant) is factored once by block elimination and
-every pass is two sweeps (:func:`_setup`, one kernel, float64 whatever the
-keys' type, as scipy computes). Then ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
+moves by more than 1e-9·(1 + |ω|). Float64 whatever the keys' type, as scipy
+computes (:func:`_setup`). What is the same for every step (the rotation
+vectors, the functions of their angles, the 3×3 matrices, all polynomials in
+[r]×) is computed with numpy, vectorised, which needs no compiling, and so
+is the right side of each pass; the one kernel, :func:`_banded`, does what
+runs along the keys: it factors the block-tridiagonal matrix (3×3 blocks,
+block diagonally dominant), held as a band of 11 diagonals, once by LU, and
+makes the two substitutions of each pass. It is kept to few statements, since
+each costs compile time on the first call (a setup of many small 3×3 element
+functions took 3 s of it; the right side in the kernel, 0.3 s). Then
+ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
 c2 = ω_n, c1 = (3r − 2hω_n − hρ'_n)/h², c0 = (−2r + hω_n + hρ'_n)/h³,
 ρ'_n = J(r_n)⁻¹ ω_{n+1}.
 
@@ -26,154 +33,163 @@ velocity J(ρ)ρ' and the angular acceleration J(ρ)ρ'' + N(ρ, ρ') (body fram
 radians per time unit: scipy's ``RotationSpline(t, r)(new_t, order)``).
 """
 
-import math
-
 import numpy as np
 
-from . import _elements as E
-from ._jit import element, inline, kernel, specialise
-from ._mat33 import cofactor33, det33, matmul, matvec, scale9
-from ._rates import acc_coeffs, inv_coeff, jac_coeffs, jac_dot, log_arc
+from ._jit import kernel
 
 MAX_ITER = 10  # scipy's RotationSpline.MAX_ITER
 TOL = 1e-9  # and its TOL
 NCOEF = 9  # c0, c1, c2 of a segment
+KL = 5  # the half width of the system's band: row 3j + a couples columns 3(j − 1) … 3(j + 1) + 2
+SMALL = 0.01  # the angle below which the step coefficients take their series (see _steps)
+
+# The numpy part works on components: a vector per step is a column of a (3, K−1) array,
+# a scalar per step a (K−1,) array, so that every operation runs on whole contiguous rows.
 
 
-@inline
-def _jmat(r, k1, k2, sgn):
-    """I + sgn·k1[r]× + k2[r]×² as a row-major 9-tuple (sgn = −1: J(r); +1 with
-    k1 = ½: J(r)⁻¹)."""
-    x, y, z = r
-    a = sgn * k1
-    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return (1.0 - k2 * (yy + zz), -a * z + k2 * xy, a * y + k2 * xz,
-            a * z + k2 * xy, 1.0 - k2 * (xx + zz), -a * x + k2 * yz,
-            -a * y + k2 * xz, a * x + k2 * yz, 1.0 - k2 * (xx + yy))  # fmt: skip
+def _cross(a, b):
+    """a × b, component-wise (3, n)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-@element
-def _inv33(m):
-    c = cofactor33(m)
-    d = 1.0 / det33(m)
-    return (c[0] * d, c[3] * d, c[6] * d, c[1] * d, c[4] * d, c[7] * d, c[2] * d, c[5] * d, c[8] * d)
+def _steps(q):
+    """(r, rr, (k1, k2, ki, j1, j2)) of every step k of the unit keys q (K, 4), float64
+    and vectorised (no compiling): r_k = Log(q_k* ⊗ q_{k+1}) on the plain great arc
+    (3, K−1), rr = |r_k|² and the functions of n = |r_k| that make J(r) = I − k1[r]× + k2[r]×²,
+    J(r)⁻¹ = I + ½[r]× + ki[r]×² and N(r, ·) (j1, j2, k2: :func:`quatarray._rates.jac_dot`).
+
+    They are the closed forms of :mod:`quatarray._rates` (from s, c = sin, cos of n/2)
+    above n = 0.01 and their Taylor series to n⁴ below: what the closed forms lose there
+    to cancellation is at most ε/n² relative, and each multiplies a power of r that
+    makes up for it (j2, the worst, ends up ε/n absolute)."""
+    qt = np.ascontiguousarray(q.T)
+    p, b = qt[:, :-1], qt[:, 1:]
+    d0 = np.einsum("ij,ij->j", p, b)
+    dv = p[0] * b[1:] - b[0] * p[1:] - _cross(p[1:], b[1:])
+    un = np.sqrt(np.einsum("ij,ij->j", dv, dv))
+    th = np.arctan2(un, d0)  # the arc's angle on S³, in [0, π]
+    r = dv * np.where(un > 0.0, 2.0 * th / np.where(un > 0.0, un, 1.0), 2.0)
+    nd = np.sqrt(d0 * d0 + un * un)
+    s, c = un / nd, d0 / nd
+    n = 2.0 * th
+    small = n < SMALL
+    m = np.where(small, 1.0, n)  # no 0/0 in the closed forms where they are not used
+    n2 = n * n
+    k1 = np.where(small, 0.5 - n2 * (1 / 24 - n2 / 720), 2.0 * s * s / (m * m))
+    k2 = np.where(small, 1 / 6 - n2 * (1 / 120 - n2 / 5040), (m - 2.0 * s * c) / m**3)
+    ki = np.where(small, 1 / 12 + n2 * (1 / 720 + n2 / 30240), (1.0 - 0.5 * m * c / np.where(small, 1.0, s)) / (m * m))
+    j1 = np.where(small, 1 / 12 - n2 * (1 / 180 - n2 / 6720), (4.0 * s * s - 2.0 * m * s * c) / m**4)
+    j2 = np.where(small, -1 / 60 + n2 * (1 / 1260 - n2 / 60480), (6.0 * s * c - 3.0 * m + 2.0 * m * s * s) / m**5)
+    return r, np.einsum("ij,ij->j", r, r), (k1, k2, ki, j1, j2)
 
 
-@element
-def _sub9(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4], a[5] - b[5], a[6] - b[6], a[7] - b[7],
-            a[8] - b[8])
-
-
-
-
-# the keys' steps through libm's atan2: the setup loop is not SIMD, and the polynomial
-# atan2 of the evaluation loops took LLVM 0.5 s more to compile here
-_log_step = inline(specialise(getattr(log_arc, "py_func", log_arc), "_libm", atan2=math.atan2))  # plain: no JIT
-
-
-@element
-def _geometry(p, q):
-    """(r, J(r), J(r)⁻¹, (j1, j2, k2)) of the segment from key p to key q: r = Log(p* ⊗ q),
-    the Jacobians as 9-tuples and the coefficients of N(r, ·) (:func:`jac_dot`)."""
-    r, n2, s, c = _log_step(p, q)
-    k1, k2 = jac_coeffs(n2, s, c)
-    j1, j2 = acc_coeffs(n2, s, c)
-    return r, _jmat(r, k1, k2, -1.0), _jmat(r, 0.5, inv_coeff(n2, s, c), 1.0), (j1, j2, k2)
-
-
-@element
-def _ld9(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2], a[i, 3], a[i, 4], a[i, 5], a[i, 6], a[i, 7], a[i, 8])
-
-
-@element
-def _st9(a, i, m):
-    for c in range(9):
-        a[i, c] = m[c]
-
-
+def _matrices(r, rr, coeffs):
+    """The matrices α I + β [r]× + γ [r]×² of every step, (len(coeffs), 9, n) (row-major
+    entries), for vectors r (3, n), rr = |r|² and `coeffs` a list of (α, β, γ) (scalars
+    or (n,)); [r]×² = r rᵀ − |r|² I."""
+    outer = (r[:, None] * r[None]).reshape(9, -1)
+    out = np.empty((len(coeffs), 9, r.shape[1]))
+    for m, (alpha, beta, gamma) in zip(out, coeffs):
+        m[...] = gamma * outer
+        m[::4] += alpha - gamma * rr
+        bx, by, bz = beta * r
+        m[1] -= bz
+        m[2] += by
+        m[3] += bz
+        m[5] -= bx
+        m[6] -= by
+        m[7] += bx
+    return out
 
 
 @kernel
+def _banded(band, x, factor):
+    """The block-tridiagonal system held by diagonals: `band` (N + KL, 2KL + 1) holds entry
+    (i, c) at ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop
+    needs a bound). `factor`: replace it by its LU factors, in place, without pivoting
+    (the matrix is block diagonally dominant), the pivots' reciprocals on the diagonal;
+    else solve L U y = ``x[KL : KL + N]`` in place (`x` padded with KL zeros both sides).
+
+    The only compiled part of the setup (the recurrences along the keys), in few
+    statements: each statement of a kernel costs compile time on the first call."""
+    n3 = band.shape[0] - KL
+    if factor:
+        for i in range(n3):
+            band[i, KL] = 1.0 / band[i, KL]
+            for k in range(1, KL + 1):
+                f = band[i + k, KL - k] * band[i, KL]
+                band[i + k, KL - k] = f
+                for c in range(1, KL + 1):
+                    band[i + k, KL - k + c] -= f * band[i, KL + c]
+        return
+    # the nearest neighbour last: each row then waits for the one before by one multiply-add
+    for i in range(n3):
+        e = x[KL + i]
+        for c in range(KL, 0, -1):
+            e -= band[i, KL - c] * x[KL + i - c]
+        x[KL + i] = e
+    for i in range(n3 - 1, -1, -1):
+        e = x[KL + i]
+        for c in range(KL, 0, -1):
+            e -= band[i, KL + c] * x[KL + i + c]
+        x[KL + i] = e * band[i, KL]
+
+
 def _setup(q, dt, coef):
     """Segment coefficients (K−1, 9) = (c0, c1, c2) of scipy's RotationSpline through
-    the unit, unflipped keys q (K, 4) with steps dt (K−1,), all float64. Returns the
-    number of passes the rate iteration took (0 for two keys)."""
-    m = dt.shape[0]  # segments
-    r = np.empty((m, 3))
-    jm = np.empty((m, 9))  # J(r_k)
-    ji = np.empty((m, 9))  # J(r_k)⁻¹
-    kn = np.empty((m, 3))  # the coefficients of N(r_k, ·)
-    for k in range(m):
-        rk, jk, jik, knk = _geometry(E.load4(q, k), E.load4(q, k + 1))
-        E.store3(r, k, rk)
-        _st9(jm, k, jk)
-        _st9(ji, k, jik)
-        E.store3(kn, k, knk)
-    w = np.empty((m, 3))  # w[k]: the rate at key k + 1 (w[m − 1] stays r_{m−1}/h_{m−1})
-    for k in range(m):
-        for c in range(3):
-            w[k, c] = r[k, c] / dt[k]
-    first = E.load3(w, 0)
+    the unit, unflipped keys q (K, 4) with steps dt (K−1,), all float64, into `coef`.
+    Returns the number of passes the rate iteration took (0 for two keys).
+
+    The rate iteration is scipy's: up to MAX_ITER passes, each an exact solve of the
+    system whose right side b0 − N(r_j, J(r_j)⁻¹ ω_{j+1}) comes from the last pass's
+    rates, until no rate moves by more than TOL·(1 + |ω|). The matrix is factored once."""
+    r, rr, (k1, k2, ki, j1, j2) = _steps(q)
+    m = len(dt)
+    rate = np.empty((3, m + 1))  # the body rates at the keys: the ends r_0/h_0, r_{K−2}/h_{K−2}
+    rate[:, 0] = r[:, 0] / dt[0]
+    rate[:, 1:] = r / dt  # the start of the iteration: the rates of the steps behind
     passes = 0
     n = m - 1  # unknown rates: keys 1 … K−2
     if n > 0:
-        # block elimination of the matrix: rows j = 0 … n−1 (key j + 1), diagonal
-        # 4(1/h_j + 1/h_{j+1}) I, left 2/h_j J(r_j), right 2/h_{j+1} J(r_{j+1})⁻¹
-        g = np.empty((n, 9))  # left_j · P_{j−1}⁻¹
-        pinv = np.empty((n, 9))  # P_j⁻¹, P_j the eliminated diagonal block
-        for j in range(n):
-            d = 4.0 * (1.0 / dt[j] + 1.0 / dt[j + 1])
-            p = (d, 0.0, 0.0, 0.0, d, 0.0, 0.0, 0.0, d)
-            if j > 0:
-                gj = matmul(scale9(_ld9(jm, j), 2.0 / dt[j]), _ld9(pinv, j - 1))
-                _st9(g, j, gj)
-                p = _sub9(p, matmul(gj, scale9(_ld9(ji, j), 2.0 / dt[j])))
-            _st9(pinv, j, _inv33(p))
-        b0 = np.empty((n, 3))
-        for j in range(n):
-            for c in range(3):
-                b0[j, c] = 6.0 * (r[j, c] / dt[j] ** 2 + r[j + 1, c] / dt[j + 1] ** 2)
-        e0 = matvec(_ld9(jm, 0), first)
-        e1 = matvec(_ld9(ji, m - 1), E.load3(w, m - 1))
-        for c in range(3):
-            b0[0, c] -= 2.0 / dt[0] * e0[c]
-            b0[n - 1, c] -= 2.0 / dt[m - 1] * e1[c]
-        y = np.empty((n, 3))
-        for it in range(MAX_ITER):
+        # J(r), J(r)⁻¹, and for N(r, ·): [r]× J(r)⁻¹, (j1[r]× + j2[r]×²) J(r)⁻¹ (all polynomials
+        # in [r]×; [r]×³ = −|r|²[r]×)
+        mats = _matrices(r, rr, [(1.0, -k1, k2), (1.0, 0.5, ki), (0.0, 1.0 - ki * rr, 0.5),
+                                 (0.0, j1 - rr * (j1 * ki + 0.5 * j2), 0.5 * j1 + j2 - rr * j2 * ki)])
+        # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹
+        band = np.zeros((3 * n + KL, 2 * KL + 1))
+        band[3 * n :, KL] = 1.0
+        rows = band[: 3 * n].reshape(n, 3, 2 * KL + 1)
+        g = 2.0 / dt[1:n]
+        for a in range(3):
+            rows[1:, a, 2 - a : 5 - a] = (g * mats[0, 3 * a : 3 * a + 3, 1:n]).T
+            rows[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
+            rows[:-1, a, 8 - a : 11 - a] = (g * mats[1, 3 * a : 3 * a + 3, 1:n]).T
+        b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
+        b0[:, 0] -= 2.0 / dt[0] * (mats[0, :, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
+        b0[:, -1] -= 2.0 / dt[-1] * (mats[1, :, -1].reshape(3, 3) @ rate[:, -1])
+        x = np.zeros(3 * n + 2 * KL)
+        _banded(band, x, True)
+        # N(r_j, v) = (r·ω)(j1[r]× + j2[r]×²) v + k2 v × [r]× v, v = J(r_j)⁻¹ω (r·v = r·ω): the three
+        # matrices applied to ω at once, each pass
+        m3 = mats[1:, :, :-1].reshape(9, 3, n)
+        rj, k2j = r[:, :-1], k2[:-1]
+        w = rate[:, 1:-1]
+        sol = x[KL : KL + 3 * n].reshape(n, 3).T
+        while passes < MAX_ITER:
             passes += 1
-            for j in range(n):  # right side with the current rates, forward sweep
-                rd = matvec(_ld9(ji, j), E.load3(w, j))
-                nb = jac_dot(E.load3(r, j), rd, kn[j, 0], kn[j, 1], kn[j, 2])
-                bj = (b0[j, 0] - nb[0], b0[j, 1] - nb[1], b0[j, 2] - nb[2])
-                if j > 0:
-                    gy = matvec(_ld9(g, j), E.load3(y, j - 1))
-                    bj = (bj[0] - gy[0], bj[1] - gy[1], bj[2] - gy[2])
-                E.store3(y, j, bj)
-            done = True
-            nxt = (0.0, 0.0, 0.0)
-            for j in range(n - 1, -1, -1):  # back sweep into w, convergence test
-                yj = E.load3(y, j)
-                if j < n - 1:
-                    u = matvec(scale9(_ld9(ji, j + 1), 2.0 / dt[j + 1]), nxt)
-                    yj = (yj[0] - u[0], yj[1] - u[1], yj[2] - u[2])
-                x = matvec(_ld9(pinv, j), yj)
-                for c in range(3):
-                    if not abs(x[c] - w[j, c]) < TOL * (1.0 + abs(x[c])):
-                        done = False
-                    w[j, c] = x[c]
-                nxt = x
+            y = np.einsum("abj,bj->aj", m3, w)
+            sol[...] = b0 - (np.einsum("aj,aj->j", rj, w) * y[6:] + k2j * _cross(y[:3], y[3:6]))
+            _banded(band, x, False)
+            done = np.all(np.abs(sol - w) < TOL * (1.0 + np.abs(sol)))
+            w[...] = sol
             if done:
                 break
-    for k in range(m):
-        ws = first if k == 0 else E.load3(w, k - 1)
-        rd = matvec(_ld9(ji, k), E.load3(w, k))
-        h = dt[k]
-        for c in range(3):
-            coef[k, 0 + c] = (-2.0 * r[k, c] + h * ws[c] + h * rd[c]) / h ** 3
-            coef[k, 3 + c] = (3.0 * r[k, c] - 2.0 * h * ws[c] - h * rd[c]) / h ** 2
-            coef[k, 6 + c] = ws[c]
+    ws, h = rate[:, :-1], dt
+    c1 = _cross(r, rate[:, 1:])
+    rd = rate[:, 1:] + 0.5 * c1 + ki * _cross(r, c1)  # ρ'(h) = J(r)⁻¹ ω_{n+1}; ρ'(0) = ω_n
+    coef[:, 0:3] = ((-2.0 * r + h * ws + h * rd) / h**3).T
+    coef[:, 3:6] = ((3.0 * r - 2.0 * h * ws - h * rd) / h**2).T
+    coef[:, 6:9] = ws.T
     return passes
 
 

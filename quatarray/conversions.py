@@ -129,11 +129,15 @@ def shepperd_raw(a):
     return E.pick4(c3, (one + tr, d21, d20, d10), E.pick4(c2, q2, E.pick4(c1, q1, q0)))
 
 
-@element
-def shepperd(a):
-    """Unit quaternion of a rotation matrix (9-tuple): :func:`shepperd_raw`
-    normalised (any scale)."""
-    return E.qnormalize(shepperd_raw(a))
+@inline
+def shepperd_unit(a):
+    """(:func:`shepperd_raw` normalised, its |q|² before): on q as it is, exact where
+    that |q|² is in range (E.far_scale), as for every rotation matrix (4 to 16).
+    One division, not four."""
+    q = shepperd_raw(a)
+    n2 = E.qdot(q, q)
+    r = like(n2, 1.0) / np.sqrt(n2)
+    return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), n2
 
 
 @inline
@@ -228,7 +232,10 @@ _as_matrix = E.FarRows(_as_matrix_plain, E.redo(store33, E.qmatrix, "as_matrix")
 def _from_matrix(m, out):
     # Returns the first row with det ≤ 0 (its output is nan), or -1.
     n = m.shape[0]
-    eps = like(m, np.finfo(m.dtype).eps)
+    # the float type's machine epsilon, |(4/3 - 1)·3 - 1| in that type (exact for binary floats;
+    # LLVM folds it to a constant: cheaper to compile than np.finfo)
+    one = like(m, 1.0)
+    eps = abs((like(m, 4.0 / 3.0) - one) * like(m, 3.0) - one)
     bad = n
     for i in prange(n):
         a = load33(m, i)
@@ -248,10 +255,10 @@ def _from_matrix(m, out):
             q = (nan, nan, nan, nan)
         elif not np.isfinite(d):
             q = (nan, nan, nan, nan)
-        elif near_orthogonal(a):
-            q = shepperd(a)
+        elif near_orthogonal(a):  # a rotation matrix, or a projected one: unit scale
+            q = shepperd_unit(a)[0]
         else:
-            q = shepperd(polar33(s, eps))
+            q = shepperd_unit(polar33(s, eps))[0]
         E.store4(out, i, q)
     return bad if bad < n else -1
 
@@ -259,10 +266,8 @@ def _from_matrix(m, out):
 @inline
 def _from_matrix_valid_plain(i, args):
     m, out = args
-    q = shepperd_raw(load33(m, i))
-    n2 = E.qdot(q, q)
-    r = like(n2, 1.0) / np.sqrt(n2)  # one division, not four
-    E.store4(out, i, (q[0] * r, q[1] * r, q[2] * r, q[3] * r))
+    q, n2 = shepperd_unit(load33(m, i))
+    E.store4(out, i, q)
     return E.far_scale(n2)
 
 
@@ -271,7 +276,12 @@ def _from_matrix_valid_scaled(i, args):
     m, out = args
     q = shepperd_raw(load33(m, i))
     if E.far_scale(E.qdot(q, q)):
-        E.store4(out, i, E.qnormalize(q))
+        # rare rows: divided by the largest |component| first (plain divisions, so that
+        # this pass compiles little: no E.qscaled), then normalised; inf and nan give nan
+        c = max(max(abs(q[0]), abs(q[1])), max(abs(q[2]), abs(q[3])))
+        q = (q[0] / c, q[1] / c, q[2] / c, q[3] / c)
+        n = np.sqrt(E.qdot(q, q))
+        E.store4(out, i, (q[0] / n, q[1] / n, q[2] / n, q[3] / n))
 
 
 _from_matrix_valid = E.FarRows(_from_matrix_valid_plain, _from_matrix_valid_scaled, "from_matrix_valid")

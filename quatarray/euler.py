@@ -27,7 +27,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _trig
-from ._jit import element, inline, ir_inline, like, prange, rowloop
+from ._jit import element, like, prange, rowloop
 from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
 
@@ -78,8 +78,8 @@ def wrap(a):
 #
 # The loops read and write flat views of C-contiguous arrays (fixed strides 4
 # and 3) and keep every per-row decision a select, so LLVM vectorises them.
-# A call in the loop stops vectorisation: as_euler's per-rotation function is
-# forced inline (_jit.inline); from_euler's body is written out in its loop.
+# A call in the loop stops vectorisation: both bodies are written out in their
+# loops (small element functions are LLVM-inlined into them).
 # Serial only: numba's parallel (parfor) version of these loops did not
 # vectorise and ran slower than the serial SIMD loop with two cores.
 
@@ -100,90 +100,101 @@ def compose_axes(e0, e1, e2, intrinsic):
     return E.qmul(e2, E.qmul(e1, e0))
 
 
-@ir_inline
-def euler_angles(q, ci, cj, ck, tb, sign, ext, lamb, scale):
-    """Bernardes & Viollet for one quaternion q (its components squared as they
-    are: scale it first if need be): ``(angle 0, angle 1, angle 2, at gimbal
-    lock, n2)``, n2 = |q|² (twice that for Tait–Bryan sequences) from the sums
-    of squares it takes the middle angle from, for E.far_scale; the parameters
-    as in :func:`_as_euler`, in q's float type."""
-    w, x, y, z = q
-    one = like(w, 1.0)
-    zero = like(w, 0.0)
-    two = like(w, 2.0)
-    qi = x if ci == 1 else (y if ci == 2 else z)
-    qj = x if cj == 1 else (y if cj == 2 else z)
-    qk = sign * (x if ck == 1 else (y if ck == 2 else z))
-    # step 1: permuted (for Tait–Bryan also rotated by π/2 about j) elements
-    a = w - tb * qj
-    b = qi + tb * qk
-    c = qj + tb * w
-    d = qk - tb * qi
-    s1 = c * c + d * d
-    s2 = a * a + b * b
-    h1 = np.sqrt(s1)  # np: numpy scalars also when run as plain Python
-    h2 = np.sqrt(s2)
-    # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
-    # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
-    # which is as sharp near π as near 0, also in float32.
-    mid = two * atan2(h1, h2)
-    tiny = like(w, 5e-8)
-    hh = h1 + h2
-    ok = (hh > zero) & (hh < like(w, math.inf))  # zero, inf or nan quaternion → nan
-    case1 = (h1 <= tiny * h2) & ok
-    case2 = (h2 <= tiny * h1) & ok  # excludes case1 when ok (tiny² < 1)
-    lock = case1 | case2
-    # step 3: first and third angles; at gimbal lock scipy's rule: the
-    # third angle is 0 and the first carries the whole rotation
-    hs = atan2(b, a)
-    hd = atan2(d, c)
-    g = two * hs if case1 else (-two * hd if ext else two * hd)
-    u = hs - hd if not lock else (g if ext else zero)  # first angle slot
-    v = hs + hd if not lock else (zero if ext else g)  # third angle slot
-    v = v * (sign if tb == one else one)
-    nan = like(w, math.nan)
-    return (
-        nan if not ok else wrap(u if ext else v) * scale,
-        nan if not ok else wrap(mid - lamb) * scale,
-        nan if not ok else wrap(v if ext else u) * scale,
-        lock,
-        s1 + s2,
-    )
+@rowloop(parallel=False)
+def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, lo, hi, out, flags):
+    """Bernardes & Viollet, row by row, on q as it is: ``(rows at gimbal lock, rows
+    outside)``. ``flags[r]`` (uint8) has bit 0 set when row r is at gimbal lock and
+    bit 1 when h1 + h2 (the two half-angle magnitudes of row r, between |q| and
+    2|q|) is not strictly between `lo` and `hi`: such a row is outside, its angles
+    nan. (Per-row flags, counted after the loop: a reduction inside it kept the
+    float32 loop from vectorising.)
+
+    With ``(lo, hi) = (0, inf)`` the rows outside are the zero, inf and nan
+    quaternions; :func:`euler_locked` first passes the :data:`_NEAR` bounds, which
+    also put the rows far from unit scale outside (where a square of a component
+    could overflow or underflow), and runs the kernel again on those rows scaled
+    (:func:`_scaled_rows`) with (0, inf): the far-row test is the one the formula
+    makes anyway, and one compiled loop serves both passes.
+
+    ``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
+    the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan else
+    0, ``sign`` the parity of (i, j, k), ``ext`` True for extrinsic, ``lamb`` π/2
+    for Tait–Bryan else 0, ``scale`` 1 or 180/π.
+
+    The body is written out in the loop: as a function (LLVM- or numba-IR-inlined)
+    the float64 loop ran about 10 % slower.
+    """
+    n = q.shape[0]
+    qf = q.reshape(n * 4)
+    of = out.reshape(n * 3)
+    # parameters in the array's float type, once
+    t = like(q, tb)
+    sg = like(q, sign)
+    lb = like(q, lamb)
+    s = like(q, scale)
+    low = like(q, lo)
+    high = like(q, hi)
+    for r in prange(n):
+        w, x, y, z = qf[4 * r], qf[4 * r + 1], qf[4 * r + 2], qf[4 * r + 3]
+        one = like(w, 1.0)
+        zero = like(w, 0.0)
+        two = like(w, 2.0)
+        qi = x if ci == 1 else (y if ci == 2 else z)
+        qj = x if cj == 1 else (y if cj == 2 else z)
+        qk = sg * (x if ck == 1 else (y if ck == 2 else z))
+        # step 1: permuted (for Tait–Bryan also rotated by π/2 about j) elements
+        a = w - t * qj
+        b = qi + t * qk
+        c = qj + t * w
+        d = qk - t * qi
+        h1 = np.sqrt(c * c + d * d)  # np: numpy scalars also when run as plain Python
+        h2 = np.sqrt(a * a + b * b)
+        # step 2: middle angle. Gimbal lock when it is within 1e-7 of 0 or π,
+        # tested as a ratio (2 atan2(h1, h2) <= 1e-7 ⇔ h1 <= tan(5e-8) h2),
+        # which is as sharp near π as near 0, also in float32.
+        mid = two * atan2(h1, h2)
+        tiny = like(w, 5e-8)
+        hh = h1 + h2
+        ok = (hh > low) & (hh < high)  # not zero, inf or nan (nor far from unit scale)
+        case1 = (h1 <= tiny * h2) & ok
+        case2 = (h2 <= tiny * h1) & ok  # excludes case1 when ok (tiny² < 1)
+        lock = case1 | case2
+        # step 3: first and third angles; at gimbal lock scipy's rule: the
+        # third angle is 0 and the first carries the whole rotation
+        hs = atan2(b, a)
+        hd = atan2(d, c)
+        g = two * hs if case1 else (-two * hd if ext else two * hd)
+        u = hs - hd if not lock else (g if ext else zero)  # first angle slot
+        v = hs + hd if not lock else (zero if ext else g)  # third angle slot
+        v = v * (sg if tb == 1 else one)
+        nan = like(w, math.nan)
+        of[3 * r] = nan if not ok else wrap(u if ext else v) * s
+        of[3 * r + 1] = nan if not ok else (mid - lb) * s  # no wrap: mid in [0, π], lamb 0 or π/2
+        of[3 * r + 2] = nan if not ok else wrap(v if ext else u) * s
+        flags[r] = np.uint8(lock) | (np.uint8(0) if ok else np.uint8(2))
+    nl = 0
+    nf = 0
+    for r in range(n):
+        nl += flags[r] & 1
+        nf += flags[r] >> 1
+    return nl, nf
 
 
-@inline
-def _as_euler_plain(i, args):
-    q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked = args
-    r = euler_angles(E.load4(q, i), ci, cj, ck, like(q, tb), like(q, sign), ext, like(q, lamb), like(q, scale))
-    E.store3(out, i, (r[0], r[1], r[2]))
-    locked[i] = r[3]
-    return E.far_scale(r[4])
+# h1 + h2 inside these bounds puts |q|² (h1² + h2², between (h1 + h2)²/2 and
+# (h1 + h2)²) inside E.NEAR_64 / E.NEAR_32, where the formulas on q as it is
+# are exact to rounding.
+_NEAR = {
+    np.dtype(np.float64): (2.0 * math.sqrt(E.NEAR_64[0]), math.sqrt(E.NEAR_64[1])),
+    np.dtype(np.float32): (2.0 * math.sqrt(E.NEAR_32[0]), math.sqrt(E.NEAR_32[1])),
+}
 
 
-@inline
-def _as_euler_scaled(i, args):
-    q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked = args
-    a = E.load4(q, i)
-    tb, sign, lamb, scale = like(q, tb), like(q, sign), like(q, lamb), like(q, scale)
-    if E.far_scale(euler_angles(a, ci, cj, ck, tb, sign, ext, lamb, scale)[4]):
-        r = euler_angles(E.qscaled(a)[0], ci, cj, ck, tb, sign, ext, lamb, scale)
-        E.store3(out, i, (r[0], r[1], r[2]))
-        locked[i] = r[3]
-
-
-# Serial only: numba's parallel (parfor) version of this loop did not vectorise
-# and ran slower than the serial SIMD loop with two cores.
-_as_euler = E.FarRows(_as_euler_plain, _as_euler_scaled, "as_euler", parallel=False)
-_as_euler.__doc__ = """``_as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, out, locked)``:
-Bernardes & Viollet, row by row (:func:`euler_angles`, on q as it is, the rows
-far from unit scale again on the scaled q: E.FarRows); ``locked[r]`` says
-whether row r is at gimbal lock (a per-row flag rather than a count: an
-integer reduction kept the float32 loop from vectorising).
-
-``ci, cj, ck`` are the quaternion columns of the extrinsic axis order (k is
-the remaining axis for proper Euler sequences), ``tb`` 1 for Tait–Bryan else
-0, ``sign`` the parity of (i, j, k), ``ext`` True for extrinsic, ``lamb`` π/2
-for Tait–Bryan else 0, ``scale`` 1 or 180/π."""
+@rowloop(parallel=False)
+def _scaled_rows(q, out):
+    """``out[r]`` = row r of q scaled by a power of two (E.qscaled): squares that
+    neither overflow nor underflow."""
+    for r in prange(q.shape[0]):
+        E.store4(out, r, E.qscaled(E.load4(q, r))[0])
 
 
 @rowloop(parallel=False)
@@ -366,10 +377,25 @@ def euler_locked(q, seq, degrees=False):
     _, _, params = _parse_seq(seq)
     a = check_core(as_float(q, "q"), "q", (4,))
     flat = _contiguous_rows(a, (4,))
-    out = np.empty((flat.shape[0], 3), a.dtype)
-    flags = np.empty(flat.shape[0], np.bool_)
-    _as_euler(flat, *params, 180.0 / math.pi if degrees else 1.0, out, flags)
-    return out.reshape(a.shape[:-1] + (3,)), int(np.count_nonzero(flags))
+    scale = 180.0 / math.pi if degrees else 1.0
+    out, locked, far = _euler_rows(flat, params, scale, *_NEAR[a.dtype])
+    if far is not None:  # rare: rows far from unit scale (or zero, inf, nan), again scaled
+        rows = np.flatnonzero(far)
+        scaled = np.empty((rows.size, 4), a.dtype)
+        _scaled_rows(flat[rows], scaled)
+        out[rows], more, _ = _euler_rows(scaled, params, scale, 0.0, math.inf)
+        locked += more
+    return out.reshape(a.shape[:-1] + (3,)), locked
+
+
+def _euler_rows(flat, params, scale, lo, hi):
+    """:func:`_as_euler` on the rows of ``flat``: (angles, rows at gimbal lock,
+    the flags of the rows outside (lo, hi) where there are any, else None)."""
+    n = flat.shape[0]
+    out = np.empty((n, 3), flat.dtype)
+    flags = np.empty(n, np.uint8)
+    nl, nf = _as_euler(flat, *params, scale, lo, hi, out, flags)
+    return out, int(nl), (flags >= 2 if nf else None)
 
 
 def from_euler(seq, angles, degrees=False):

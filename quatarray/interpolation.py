@@ -99,29 +99,35 @@ def _bisect(p, q, out):
 
 @rowloop(rows=1)
 def _bezier_controls(q, f_out, f_in, a, b):
-    """Controls of all K keys (flat (4K,) arrays), one pass. The end keys take the
-    phantom keys q_{−1} = double(q_1, q_0) and q_K = double(q_{K−2}, q_{K−1}), for
-    which :func:`controls4` gives a_0 = slerp(q_0, q_1, 1/3) and b_{K−1} =
-    slerp(q_{K−1}, q_{K−2}, 1/3) (to rounding)."""
-    k = f_out.shape[0]
-    q0 = load4_ir(q, 0)
-    q1 = load4_ir(q, 1)
-    ends = controls4(double4(q1, q0), q0, q1, load1_ir(f_out, 0), load1_ir(f_in, 0))
-    store4_ir(a, 0, ends[0])
-    store4_ir(b, 0, ends[1])
-    qm = load4_ir(q, k - 2)
-    ql = load4_ir(q, k - 1)
-    ends = controls4(qm, ql, double4(qm, ql), load1_ir(f_out, k - 1), load1_ir(f_in, k - 1))
-    store4_ir(a, k - 1, ends[0])
-    store4_ir(b, k - 1, ends[1])
-    n = k - 2  # the interior keys 1 … K−2
+    """Controls of all K keys (flat arrays), one pass over them: `q` holds K + 2 keys,
+    the phantom q_{−1} = double(q_1, q_0), the keys, then q_K = double(q_{K−2}, q_{K−1})
+    (see :func:`_with_phantoms`), for which :func:`controls4` gives a_0 = slerp(q_0, q_1, 1/3)
+    and b_{K−1} = slerp(q_{K−1}, q_{K−2}, 1/3) (to rounding)."""
+    n = f_out.shape[0]
     for blk in prange((n + ROWS - 1) // ROWS):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for j in range(min(n - lo, ROWS)):
-            i = lo + j + 1
-            r = controls4(load4_ir(q, i - 1), load4_ir(q, i), load4_ir(q, i + 1), load1_ir(f_out, i), load1_ir(f_in, i))
+            i = lo + j
+            r = controls4(load4_ir(q, i), load4_ir(q, i + 1), load4_ir(q, i + 2), load1_ir(f_out, i), load1_ir(f_in, i))
             store4_ir(a, i, r[0])
             store4_ir(b, i, r[1])
+
+
+def _double_row(p, q):
+    """:func:`quatarray._slerp.double4` of two rows, in numpy (the same operations in the
+    same order, so the same bits)."""
+    d2 = 2.0 * (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
+    return d2 * q - p
+
+
+def _with_phantoms(q):
+    """The K ≥ 2 keys `q` between the phantom keys of :func:`_bezier_controls`, flat."""
+    k = q.shape[0]
+    x = np.empty((k + 2, 4), q.dtype)
+    x[1:-1] = q
+    x[0] = _double_row(q[1], q[0])
+    x[-1] = _double_row(q[k - 2], q[k - 1])
+    return x.reshape(-1)
 
 
 @rowloop(rows=4)
@@ -382,8 +388,7 @@ def controls_bezier(q, t=None):
         f_out, f_in = tangent_scales(np.diff(t))
     a = np.empty(q.shape, q.dtype)
     b = np.empty(q.shape, q.dtype)
-    _bezier_controls(np.ascontiguousarray(q).reshape(-1), f_out.astype(q.dtype), f_in.astype(q.dtype),
-                     a.reshape(-1), b.reshape(-1))
+    _bezier_controls(_with_phantoms(q), f_out.astype(q.dtype), f_in.astype(q.dtype), a.reshape(-1), b.reshape(-1))
     return a, b
 
 

@@ -81,8 +81,7 @@ def test_as_euler_float32(quats, seq):
 def test_kernels_stay_float32():
     qa.as_euler(np.ones((3, 4), np.float32), "xyz")
     qa.from_euler("xyz", np.ones((3, 3), np.float32))
-    # (as_euler's loop is an E.FarRows: its first pass takes the arguments as one *args tuple)
-    for k in (euler._as_euler.first.serial, euler._from_euler.serial):
+    for k in (euler._as_euler.serial, euler._from_euler.serial):
         sigs = [getattr(s.args[0], "types", s.args) for s in k.nopython_signatures]
         sigs = [s for s in sigs if s[0].dtype.name == "float32"]
         assert sigs

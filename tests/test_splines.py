@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Slerp
 
 import quatarray as qa
+from quatarray import splines
 from quatarray._lanes import LANES, resample_streams
 from test_interpolation import R, ref_bezier, ref_controls, same_rot, smooth_keys
 
@@ -52,11 +53,16 @@ def _bezier_reference(times, keys, new):
     return qa.bezier(q[n], a[n], b[n + 1], q[n + 1], u.astype(keys.dtype))
 
 
+@pytest.mark.parametrize("pieces_from", [2, None], ids=["pieces", "whole-table"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_spline_bezier_dense_and_sparse_runs(rng, dtype):
+def test_spline_bezier_dense_and_sparse_runs(rng, dtype, pieces_from, monkeypatch):
     """Segments holding one sample or a few (evaluated in SIMD tiles) next to segments
     holding many (evaluated run by run), across blocks of the evaluation loop, in order
-    and shuffled."""
+    and shuffled; sorted new times through the piece-by-piece table (``pieces``: from 2
+    keys on) or through the whole table (3000 keys are fewer than the default
+    PIECES_MIN_KEYS)."""
+    if pieces_from is not None:
+        monkeypatch.setattr(splines, "PIECES_MIN_KEYS", pieces_from)
     k = 3000
     times = np.cumsum(rng.uniform(0.2, 2.0, k))
     keys = (smooth_keys(rng, k, 0.3) * rng.choice([-1, 1], k)[:, None]).astype(dtype)
@@ -83,6 +89,21 @@ def test_spline_bezier_dense_and_sparse_runs(rng, dtype):
         np.testing.assert_array_equal(got, qa.spline(times, keys, at_keys[::-1], method=method)[::-1])
         if method != "nlerp":  # nlerp divides by a norm of about 1: not exact
             np.testing.assert_array_equal(got, unit)
+
+
+@pytest.mark.parametrize("sort", [True, False])
+def test_spline_takes_the_pieces_from_pieces_min_keys(monkeypatch, sort):
+    """Sorted new times of PIECES_MIN_KEYS keys or more go piece by piece; fewer keys,
+    or unsorted new times, the whole table."""
+    called = []
+    pieces = splines._PIECES["bezier"]
+    monkeypatch.setitem(splines._PIECES, "bezier", lambda *a: called.append(1) or pieces(*a))
+    for k in (splines.PIECES_MIN_KEYS - 1, splines.PIECES_MIN_KEYS):
+        t = np.arange(float(k))
+        new = np.linspace(0, k - 1, 3 * k)
+        got = qa.spline(t, qa.random(k, rng=0), new if sort else new[::-1])
+        assert got.shape == (3 * k, 4)
+    assert called == ([1] if sort else [])
 
 
 def test_spline_constant_speed_on_great_circle():
