@@ -84,7 +84,7 @@ def _apply_vqs_plain(i, args):
     t = E.load3(v, i)
     n2 = E.qdot(a, a)
     f = E.far_scale(n2)
-    keep_v = out.ctypes.data == v.ctypes.data
+    keep_v = np.int32(out.ctypes.data == v.ctypes.data)  # int32 like f: one pick3 compiled
     E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
     return f
 
