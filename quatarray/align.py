@@ -415,8 +415,19 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
     status = []
 
     def run(a2, b2, w2, q2, r2, s2):
-        flags = np.zeros(a2.shape[0], np.uint8)
-        _align(a2, b2, w2, q2, r2, s2, flags, np.empty((-(-a2.shape[0] // ALIGN_BLOCK), 32)))
+        if n == 1:
+            # single pairs: every problem takes the primary-pair path, and _align (the
+            # Davenport kernel) would only set the flags: set here, it is not compiled
+            zero = np.square(a2[:, 0], dtype=np.float64).sum(axis=1) == 0.0  # in float64, as _align
+            zero |= np.square(b2[:, 0], dtype=np.float64).sum(axis=1) == 0.0
+            flags = np.where(zero, _ZERO_PRIMARY | _FIXED, _FIXED).astype(np.uint8)
+            for x in (q2, r2, s2):
+                x.fill(np.nan)
+        else:
+            if not w2.flags.c_contiguous:  # the default or broadcast weights: one compiled signature serves
+                w2 = np.ascontiguousarray(w2)
+            flags = np.zeros(a2.shape[0], np.uint8)
+            _align(a2, b2, w2, q2, r2, s2, flags, np.empty((-(-a2.shape[0] // ALIGN_BLOCK), 32)))
         fixed = np.flatnonzero((flags & (_FIXED | _ZERO_PRIMARY)) == _FIXED)
         if fixed.size:
             _align_fixed(fixed, a2, b2, w2, q2, r2)

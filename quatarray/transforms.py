@@ -84,7 +84,7 @@ def _apply_vqs_plain(i, args):
     t = E.load3(v, i)
     n2 = E.qdot(a, a)
     f = E.far_scale(n2)
-    keep_v = out.ctypes.data == v.ctypes.data
+    keep_v = np.int32(out.ctypes.data == v.ctypes.data)  # int32 like f: one pick3 compiled
     E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
     return f
 
@@ -871,14 +871,23 @@ def interpolate(a, b, t):
     if type(a) is not type(b):
         a, b = a._as_vqm(), b._as_vqm()
     tt = as_float(t, "t")
-    _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
+    lead = _broadcast([a.shape, b.shape, tt.shape], "`a`, `b` and `t`")
+    dtype = result_dtype([a._v, b._v, tt], [False, False, is_weak(t)])
+    # t contiguous (a copy of one value a row where it broadcasts) and read-only like
+    # the parts: one compiled lerp serves array, scalar and broadcast t (a strided or
+    # writeable t compiled it once more each)
+    tt = np.broadcast_to(tt.astype(dtype, copy=False), lead)  # a read-only view
+    if not tt.flags.c_contiguous:
+        tt = _read_only(np.array(tt, order="C"))  # (not ascontiguousarray: it makes a 0-d t 1-d)
     kernel = _lerp_vm if isinstance(a, VQM) else _lerp_vs
-    v, x = elementwise(
-        kernel,
-        [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (t, "t", ())],
-        [(3,), a._core],
-    )
-    v, x = _as_arrays(v, x)
-    q = np.asarray(slerp(normalize(a._q), normalize(b._q), t), dtype=v.dtype)
-    q = np.array(np.broadcast_to(q, v.shape[:-1] + (4,)))
-    return type(a)._new(v, q, x)
+    parts = [(a._v, "v", (3,)), (a._x, a._field, a._core), (b._v, "v", (3,)), (b._x, b._field, b._core), (tt, "t", ())]
+    v, x = elementwise(kernel, parts, [(3,), a._core], result=dtype)
+    q = slerp(normalize(a._q), normalize(b._q), tt)
+    return type(a)._new(*_as_arrays(v, q, x))
+
+
+def _read_only(a):
+    """`a` (a copy made here) made read-only like the container's parts: the
+    kernels then see one type whether an input was copied or not."""
+    a.flags.writeable = False
+    return a
