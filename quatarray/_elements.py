@@ -15,7 +15,9 @@ from numba import types
 from numba.extending import overload
 
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
-from ._jit import CACHE, RowLoop, element, exponent_scales, inline, like, prange, rowloop, specialise
+from ._jit import (
+    CACHE, INLINE_OPTIONS, RowLoop, bit_distance, element, exponent_scales, inline, like, prange, rowloop, specialise,
+)
 from ._trig import atan2
 
 
@@ -94,6 +96,56 @@ def far_scale(n2):
     return np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
+def far_excess(n2):
+    """An unsigned integer (of the width of `n2`) above the limit of :func:`far_any`
+    exactly when :func:`far_scale` of `n2` is 1: ``bit_distance(n2, lo)``, lo the
+    bottom of the range (below it, and for a negative nan, it wraps to values above
+    the limit). Its ``max`` over a loop's rows says whether a row was far, at two
+    integer SIMD instructions per vector of rows: less than ``far_scale``'s
+    compares, conversion and stored flag (the flag blocks of :class:`FarRows`).
+    The loop starts its ``max`` at :func:`far_start`."""
+    return bit_distance(n2, _limits(32 if isinstance(n2, np.float32) else 64)[0])
+
+
+def far_start(a):
+    """:func:`far_excess` of 1 in the float type of the array `a`: where a loop's
+    ``max`` of far_excess values starts (a near value of the right type)."""
+    return _limits(8 * a.dtype.itemsize)[1]
+
+
+def far_any(m):
+    """Whether `m`, a ``max`` of :func:`far_excess` values, is one of a far row."""
+    return bool(m > _limits(32 if isinstance(m, np.uint32) else 64)[2])
+
+
+def _limits(bits):
+    """(lo, start, limit) of far_excess, far_start and far_any for floats of `bits` bits."""
+    t = np.float32 if bits == 32 else np.float64
+    lo, hi = (t(x) for x in (NEAR_32 if bits == 32 else NEAR_64))
+    return lo, bit_distance(t(1.0), lo), bit_distance(hi, lo)
+
+
+@overload(far_excess, jit_options=INLINE_OPTIONS)
+def _far_excess(n2):
+    if isinstance(n2, types.Float):
+        lo = _limits(n2.bitwidth)[0]
+        return lambda n2: bit_distance(n2, lo)
+
+
+@overload(far_start, jit_options=INLINE_OPTIONS)
+def _far_start(a):
+    if isinstance(a, types.Array) and isinstance(a.dtype, types.Float):
+        start = _limits(a.dtype.bitwidth)[1]
+        return lambda a: start
+
+
+@overload(far_any, jit_options=INLINE_OPTIONS)
+def _far_any(m):
+    if isinstance(m, types.Integer) and not m.signed:
+        limit = _limits(m.bitwidth)[2]
+        return lambda m: m > limit
+
+
 FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit
 
 
@@ -132,6 +184,13 @@ def _far_rows_again(*args):
     # the second pass of FarRows: each copy rebinds _SCALED
     for i in range(args[0].shape[0]):
         _SCALED(i, args)
+
+
+def second_pass(scaled, name):
+    """The serial kernel ``k(*args)`` that calls ``scaled(i, args)`` on every row:
+    the second pass of :class:`FarRows` (and of loops that find their far rows
+    otherwise, as ``rotation``'s with :func:`far_excess`)."""
+    return RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
 
 
 def _redo(i, args):
@@ -195,7 +254,7 @@ class FarRows:
 
     def __init__(self, plain, scaled, name, parallel=True):
         self.first = rowloop(specialise(_far_rows, "_" + name, home=plain, _PLAIN=plain), parallel=parallel)
-        self.again = RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
+        self.again = second_pass(scaled, name)
         self.__name__ = "_" + name
 
     def __call__(self, *args):

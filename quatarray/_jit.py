@@ -48,6 +48,11 @@ Kernel layers
     read from m's exponent bits: exact powers of two, no division, and
     vectorisable (integer and/sub on the SIMD registers). Used to scale a
     quaternion before squaring its components (``_elements.qscaled``).
+``bit_distance(x, lo)``
+    The bits of x minus those of lo as an unsigned integer of their width:
+    for floats at least lo, how many floats x lies above it; below lo it
+    wraps to large values. A range test of a float as one integer subtraction,
+    whose ``max`` over a loop stays two SIMD instructions (``_elements.far_excess``).
 ``flat_rows(a)``, ``flat_load``, ``flat_store``
     Row access at a compile-time constant stride for C-contiguous ``(n, k)``
     arrays (used by ``_elements.load4`` & co.). numba addresses ``a[i, j]``
@@ -387,3 +392,35 @@ def _exponent_scales(typingctx, m):
 def _exponent_scales_ov(m):
     if isinstance(m, types.Float):
         return lambda m: _exponent_scales(m)
+
+
+def bit_distance(x, lo):
+    """The bits of `x` minus those of `lo` (floats of one type), as an unsigned
+    integer of their width, wrapping: for x >= lo >= 0, how many floats x lies
+    above lo (inf and nan lie above every finite float); x below lo, and
+    negative x (also a nan with its sign bit set), wrap to large values
+    (``_elements.far_excess`` uses both). Compiled, one integer subtraction of
+    the bit patterns (vectorisable)."""
+    t, u = (np.float32, np.uint32) if isinstance(x, np.float32) else (np.float64, np.uint64)
+    w = 32 if u is np.uint32 else 64
+    bits = [int(np.asarray(a, t).view(u)) for a in (x, lo)]
+    return u((bits[0] - bits[1]) % (1 << w))
+
+
+@intrinsic
+def _bit_distance(typingctx, x, lo):
+    if not (isinstance(x, types.Float) and x == lo):
+        return None
+    sig = (types.uint32 if x.bitwidth == 32 else types.uint64)(x, lo)
+
+    def codegen(context, builder, sig, args):
+        ity = ir.IntType(sig.args[0].bitwidth)
+        return builder.sub(builder.bitcast(args[0], ity), builder.bitcast(args[1], ity))
+
+    return sig, codegen
+
+
+@overload(bit_distance, jit_options=INLINE_OPTIONS)
+def _bit_distance_ov(x, lo):
+    if isinstance(x, types.Float) and x == lo:
+        return lambda x, lo: _bit_distance(x, lo)

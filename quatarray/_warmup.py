@@ -106,6 +106,13 @@ def _each(f, *args, out=False, **kw):
         f(*args, out=_strided(np.empty_like(r)), **kw)
 
 
+def _out_is_last(f, *args):
+    """``f(*args, out=b)`` with b a copy of the last argument, itself: the kernel
+    variant for an ``out`` that is an input (rotation's, say)."""
+    b = args[-1].copy()
+    f(*args[:-1], b, out=b)
+
+
 def _interp(f, s, *extra, **kw):
     """An interpolation function of ``(*quaternions, t)``: N pairs and N t, scalar t,
     one pair and N t."""
@@ -174,7 +181,8 @@ TABLE = {
     "distance": _f("distance", lambda f, s: (_each(f, s.p, s.q), _each(f, s.far, s.q))),
     "mean": _f("mean", lambda f, s: (_each(f, s.p), f(s.p, weights=s.s))),
     # rotation
-    "rotate": _f("rotate", lambda f, s: (_each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True))),
+    "rotate": _f("rotate", lambda f, s: (
+        _each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True), _out_is_last(f, s.p, s.v))),
     # conversions
     "as_matrix": _f("as_matrix", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_matrix": _f("from_matrix", lambda f, s: (

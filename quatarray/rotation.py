@@ -1,25 +1,41 @@
 """Rotating vectors by quaternions."""
 
+import numpy as np
+
 from . import _elements as E
-from ._jit import inline, prange, rowloop
+from ._jit import inline, prange, rowloop, specialise
 from ._validate import as_float, elementwise
 
 
-# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
-# a second kernel redoes the rare rows outside the range where that is exact,
-# on the scaled q (E.qscaled), only when there are some. The first pass leaves those rows of
-# `out` (which may be `v`) holding v.
+# The row loop computes the formula on q as it is and takes the max of
+# E.far_excess(|q|²) on the way (two integer SIMD instructions per vector of
+# rows); only when a row was far from unit scale (or zero, inf, nan) a second,
+# serial kernel redoes those rows on the scaled q (E.qscaled). The body is
+# written out in the loop: as a function called per row (E.FarRows) and with
+# a stored per-row flag the float32 loop ran 20-25 % slower than without far
+# rows. Where `out` is `v`, the first pass leaves the far rows holding v (a
+# select per component, in a copy of the loop compiled only for that case).
+
+KEEP = False  # rebound to True in _rotate_keep
 
 
-@inline
-def _rotate_plain(i, args):
-    q, v, out = args
-    a = E.load4(q, i)
-    x = E.load3(v, i)
-    n2 = E.qdot(a, a)
-    f = E.far_scale(n2)
-    E.store3(out, i, E.pick3(f, x, E.qrotate_raw(a, x, n2)))
-    return f
+def _rotate_rows(q, v, out):
+    acc = E.far_start(q)
+    for i in prange(q.shape[0]):
+        a = E.load4(q, i)
+        x = E.load3(v, i)
+        n2 = E.qdot(a, a)
+        r = E.qrotate_raw(a, x, n2)
+        if KEEP:
+            E.store3(out, i, E.pick3(E.far_scale(n2), x, r))
+        else:
+            E.store3(out, i, r)
+        acc = max(acc, E.far_excess(n2))
+    return E.far_any(acc)
+
+
+_rotate_new = rowloop(_rotate_rows)
+_rotate_keep = rowloop(specialise(_rotate_rows, "_keep", KEEP=True))
 
 
 @inline
@@ -30,7 +46,16 @@ def _rotate_scaled(i, args):
         E.store3(out, i, E.qrotate(a, E.load3(v, i)))
 
 
-_rotate = E.FarRows(_rotate_plain, _rotate_scaled, "rotate")
+_rotate_again = E.second_pass(_rotate_scaled, "rotate")
+
+
+def _rotate(q, v, out):
+    """The batched rotate (for :func:`quatarray._validate.elementwise`): row i of
+    `out` from rows i of `q` and `v`; `out` may be `v` (no other overlap)."""
+    far = (_rotate_keep if np.may_share_memory(v, out) else _rotate_new)(q, v, out)
+    if far:
+        _rotate_again(q, v, out)
+    return far
 
 
 @rowloop
