@@ -13,10 +13,15 @@ from ._validate import as_float, elementwise
 # serial kernel redoes those rows on the scaled q (E.qscaled). The body is
 # written out in the loop: as a function called per row (E.FarRows) and with
 # a stored per-row flag the float32 loop ran 20-25 % slower than without far
-# rows. Where `out` is `v`, the first pass leaves the far rows holding v (a
-# select per component, in a copy of the loop compiled only for that case).
+# rows.
+#
+# `out` = `v` has a copy of the loop of its own (compiled only for that case),
+# which stores into v itself: LLVM then sees each row read before it is
+# written, and vectorises the loop (with `out` a second array that may overlap
+# v it checks their ranges at run time and runs the scalar loop, 4-6x slower).
+# It leaves the far rows holding v (a select per component) for the second pass.
 
-KEEP = False  # rebound to True in _rotate_keep
+INTO_V = False  # rebound to True in _rotate_into
 
 
 def _rotate_rows(q, v, out):
@@ -26,8 +31,8 @@ def _rotate_rows(q, v, out):
         x = E.load3(v, i)
         n2 = E.qdot(a, a)
         r = E.qrotate_raw(a, x, n2)
-        if KEEP:
-            E.store3(out, i, E.pick3(E.far_scale(n2), x, r))
+        if INTO_V:  # a constant: numba keeps one branch
+            E.store3(v, i, E.pick3(E.far_scale(n2), x, r))
         else:
             E.store3(out, i, r)
         acc = max(acc, E.far_excess(n2))
@@ -35,7 +40,7 @@ def _rotate_rows(q, v, out):
 
 
 _rotate_new = rowloop(_rotate_rows)
-_rotate_keep = rowloop(specialise(_rotate_rows, "_keep", KEEP=True))
+_rotate_into = rowloop(specialise(_rotate_rows, "_into", INTO_V=True))
 
 
 @inline
@@ -52,7 +57,7 @@ _rotate_again = E.second_pass(_rotate_scaled, "rotate")
 def _rotate(q, v, out):
     """The batched rotate (for :func:`quatarray._validate.elementwise`): row i of
     `out` from rows i of `q` and `v`; `out` may be `v` (no other overlap)."""
-    far = (_rotate_keep if np.may_share_memory(v, out) else _rotate_new)(q, v, out)
+    far = (_rotate_into if np.may_share_memory(v, out) else _rotate_new)(q, v, out)
     if far:
         _rotate_again(q, v, out)
     return far
