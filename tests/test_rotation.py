@@ -85,3 +85,32 @@ def test_one_rotation_many_vectors(rng, dtype):
     assert np.allclose(qa.rotate(np.tile(q, (1000, 1)), v), want, atol=1e-14)
     assert qa.rotate(q, np.empty((0, 3))).shape == (0, 3)
     assert np.isnan(qa.rotate(np.zeros(4), v[:3])).all()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("variant", ["serial", "parallel"])
+def test_far_rows_with_out_and_out_v(rng, dtype, variant):
+    # rows far from unit scale (and zero, nan) are redone by the second pass, also
+    # when `out` is `v` (its own loop, which must leave those rows holding v)
+    from quatarray import _jit
+
+    big, small = (1e30, 1e-30) if dtype == np.float32 else (1e200, 1e-200)
+    q0 = qa.random(300, rng).astype(dtype)
+    v = rng.standard_normal((300, 3)).astype(dtype)
+    q = q0.copy()
+    q[7] *= dtype(big)
+    q[150] *= dtype(small)
+    q[200], q[201] = 0, np.nan
+    with _jit.variant(variant):
+        want = qa.rotate(q0, v)
+        got = qa.rotate(q, v)
+        into = v.copy()
+        assert qa.rotate(q, into, out=into) is into
+        out = np.empty_like(v)
+        qa.rotate(q, v, out=out)
+    near = np.ones(300, bool)
+    near[[200, 201]] = False
+    tol = 1e-5 if dtype == np.float32 else 1e-14
+    assert np.allclose(got[near], want[near], atol=tol) and np.isnan(got[~near]).all()
+    np.testing.assert_array_equal(into, got)
+    np.testing.assert_array_equal(out, got)
