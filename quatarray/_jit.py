@@ -73,7 +73,7 @@ import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core.registry import CPUDispatcher
-from numba.extending import intrinsic, overload
+from numba.extending import intrinsic, lower_builtin, overload, type_callable
 
 CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
@@ -304,27 +304,25 @@ def like(x, c):
     return c
 
 
-# An @overload (a small compiled function per pair of types), not a cast lowered in
-# place: typed and lowered directly, it saved ~0.1 s of a first call but changed
-# the order in which LLVM inlines the element functions around it, and
-# from_euler's loop (whose sin/cos is an LLVM call inlined late) no longer
-# vectorised: half the speed.
-@overload(like, jit_options={"cache": CACHE})
-def _like(x, c):
-    if isinstance(x, types.Float):
-        ftype = np.dtype(str(x)).type
+@type_callable(like)
+def _type_like(context):
+    # typed and lowered directly (a cast), not an @overload: an overload is a
+    # whole numba compile for each pair of argument types it meets (0.3-0.6 s of
+    # a spline's first call). Element functions that a loop needs inlined must
+    # be ``inline``: plain ``element`` ones are inlined by LLVM's heuristics,
+    # which this changes (from_euler's loop stopped vectorising until its
+    # sin/cos became ``inline``).
+    def typer(x, c):
+        ftype = x.dtype if isinstance(x, types.Array) else x
+        if isinstance(ftype, types.Float) and isinstance(types.unliteral(c), (types.Number, types.Boolean)):
+            return ftype
 
-        def impl(x, c):
-            return ftype(c)
+    return typer
 
-        return impl
-    if isinstance(x, types.Array) and isinstance(x.dtype, types.Float):
-        ftype = np.dtype(str(x.dtype)).type
 
-        def impl(x, c):
-            return ftype(c)
-
-        return impl
+@lower_builtin(like, types.Any, types.Any)
+def _lower_like(context, builder, sig, args):
+    return context.cast(builder, args[1], types.unliteral(sig.args[1]), sig.return_type)
 
 
 def flat_rows(a):

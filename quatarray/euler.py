@@ -27,7 +27,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _trig
-from ._jit import element, like, prange, rowloop
+from ._jit import element, inline, like, prange, rowloop
 from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
 
@@ -48,17 +48,19 @@ _GIMBAL = (
 # per-element helpers
 
 
-@element
+@inline
 def sincos_call(x):
-    """:func:`quatarray._trig.sincos` as an element function of its own (an
-    LLVM call that LLVM inlines into :func:`_from_euler`'s loop after its
-    selects are formed). Inlined at numba-IR level three times into that loop
-    it left branches that stop the vectoriser (about 2× slower in float64, 4×
-    in float32)."""
+    """:func:`quatarray._trig.sincos` as an element function of its own, compiled
+    once and inlined by LLVM into :func:`_from_euler`'s loop (``inline``, like
+    :func:`beyond` and :func:`axis_quat`). Inlined at numba-IR level three times
+    into that loop it left branches that stop the vectoriser (about 2× slower in
+    float64, 4× in float32); left to LLVM's own inlining decisions, whether the
+    loop vectorised depended on what else the loop called (it stopped, at half
+    the speed, when ``like`` became a cast)."""
     return _trig.sincos(x)
 
 
-@element
+@inline
 def beyond(x):
     """True where |x| exceeds the range in which :func:`quatarray._trig.sincos`
     is accurate (inf too, not nan): those rows are redone with libm."""
@@ -84,7 +86,7 @@ def wrap(a):
 # vectorise and ran slower than the serial SIMD loop with two cores.
 
 
-@element
+@inline
 def axis_quat(axis, s, c):
     """(cos h, sin h along axis 0/1/2), built with selects."""
     zero = like(s, 0.0)
