@@ -106,6 +106,31 @@ def test_spline_takes_the_pieces_from_pieces_min_keys(monkeypatch, sort):
     assert called == ([1] if sort else [])
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_unit_keys_is_normalize_then_unflip_row_by_row(rng, dtype):
+    """unit_keys' blocked sign chain gives the bits of the row-by-row rule: across its
+    block borders and the borders of parts, with zero and nan rows (their dot products
+    flip nothing), orthogonal neighbours, and the first row negated (flip0)."""
+    n = 3 * splines.UNIT_BLOCK + 5
+    q = (rng.normal(size=(n, 4)) * rng.choice([-1, 1], n)[:, None]).astype(dtype)
+    q[rng.random(n) < 0.05] = 0
+    q[rng.random(n) < 0.02] = np.nan
+    q[splines.UNIT_BLOCK - 1 : splines.UNIT_BLOCK + 1] = [[1, 0, 0, 0], [0, 1, 0, 0]]
+    q[0] = np.nan
+    cuts = [0, 7, splines.UNIT_BLOCK + 3, n]
+    parts = [q[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
+    for flip0 in (False, True):
+        want = qa.normalize(q)
+        if flip0:
+            want[0] = -want[0]
+        for i in range(1, n):
+            if np.dot(want[i], want[i - 1]) < 0:
+                want[i] = -want[i]
+        for got in (splines.unit_keys(parts, flip0), splines.unit_keys([q], flip0)):
+            assert got.dtype == dtype
+            assert np.array_equal(got.view(np.uint8), want.view(np.uint8))
+
+
 def test_spline_constant_speed_on_great_circle():
     t = np.arange(10.0)
     keys = qa.from_rotvec(np.outer(t * 0.3, [1, 2, 2]) / 3)  # evenly spaced on one circle
