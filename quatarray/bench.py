@@ -48,14 +48,22 @@ def _once(fn):
     return time.perf_counter() - t0
 
 
+FEW_CALLS = 4  # batches of this many calls or fewer follow an untimed call (see measure)
+
+
 def measure(fns, budget=1.5, min_rounds=3, max_rounds=25, slow=3.0):
     """Best time per call of each of ``fns`` (a dict), timed in interleaved rounds.
 
     Each callable is called once to warm up (numba compiles or loads its
     cache then); a round calls every candidate ``reps`` times, ``reps`` chosen
-    so a call batch lasts at least ~20 ms. Rounds continue until ``budget``
-    seconds are spent (at least ``min_rounds``). A candidate whose first
-    call takes more than ``slow`` seconds is timed by that call alone.
+    so a call batch lasts at least ~20 ms. Where that is a few calls, each
+    batch follows one untimed call: the first call after another library's
+    may find the memory it frees handed back to the system and pay for fresh
+    pages (for a spline's temporaries, up to 3× the call), which a batch of
+    one or two calls would count in full and a longer batch mostly not.
+    Rounds continue until ``budget`` seconds are spent (at least
+    ``min_rounds``). A candidate whose first call takes more than ``slow``
+    seconds is timed by that call alone.
     """
     reps, best, done = {}, {}, set()
     for name, fn in fns.items():
@@ -72,6 +80,8 @@ def measure(fns, budget=1.5, min_rounds=3, max_rounds=25, slow=3.0):
             if name in done:
                 continue
             k = reps[name]
+            if k <= FEW_CALLS:
+                fn()
             t0 = time.perf_counter()
             for _ in range(k):
                 fn()
