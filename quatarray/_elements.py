@@ -16,7 +16,8 @@ from numba.extending import overload
 
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
 from ._jit import (
-    CACHE, INLINE_OPTIONS, RowLoop, bit_distance, element, exponent_scales, inline, like, prange, rowloop, specialise,
+    CACHE, INLINE_OPTIONS, RowLoop, bit_distance, element, exponent_scales, inline, ir_inline, like, prange, rowloop,
+    specialise,
 )
 from ._trig import atan2
 
@@ -163,11 +164,17 @@ def flags_max(flags, m):
     return f
 
 
-_PLAIN = _SCALED = _STORE = _FORMULA = None  # rebound in each copy (see FarRows, redo)
+_PLAIN = _SCALED = _STORE = _FORMULA = _FAR_LOOP = None  # rebound in each copy (see FarRows, redo)
 
 
 def _far_rows(*args):
-    # the first pass of FarRows: each copy rebinds _PLAIN
+    # the first pass of FarRows: each copy rebinds _FAR_LOOP (its _far_loop, inlined)
+    return _FAR_LOOP(args)
+
+
+def _far_loop(args):
+    # the loop of _far_rows on its arguments as a tuple (which numba can inline, as
+    # RowLoop.into does, where it cannot inline *args): each copy rebinds _PLAIN
     n = args[0].shape[0]
     far = np.int32(0)
     for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
@@ -253,7 +260,9 @@ class FarRows:
     # keeps LLVM from vectorising the loop, and so does numba-IR inlining of plain.)
 
     def __init__(self, plain, scaled, name, parallel=True):
-        self.first = rowloop(specialise(_far_rows, "_" + name, home=plain, _PLAIN=plain), parallel=parallel)
+        loop = specialise(_far_loop, "_" + name, home=plain, _PLAIN=plain)
+        self.first = RowLoop(specialise(_far_rows, "_" + name, home=plain, _FAR_LOOP=ir_inline(loop)),
+                             parallel=parallel, tuple_loop=loop)
         self.again = second_pass(scaled, name)
         self.__name__ = "_" + name
 
@@ -261,6 +270,13 @@ class FarRows:
         far = self.first(*args)
         if far:
             self.again(*args)
+        return far
+
+    def into(self, k, *args):
+        """``self(*args, args[k])``, the first pass as :meth:`quatarray._jit.RowLoop.into`."""
+        far = self.first.into(k, *args)
+        if far:
+            self.again(*args, args[k])
         return far
 
 

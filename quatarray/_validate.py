@@ -294,11 +294,19 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
         o = None
     target = o if o is not None else np.empty((n,) + core, dtype)
     # An input overlapping `out` other than as the very same view is copied
-    # first: a row must never read what an earlier row wrote.
-    flat = [
-        f.copy() if np.may_share_memory(f, target) and not _same_view(f, target) else f for f in flat
-    ]
-    kernel(*flat, target)
+    # first: a row must never read what an earlier row wrote. The very same view
+    # goes to a loop that knows it (RowLoop.into), where the loop has one.
+    same = -1
+    for i, f in enumerate(flat):
+        if np.may_share_memory(f, target):
+            if _same_view(f, target):
+                same = i
+            else:
+                flat[i] = f.copy()
+    if same >= 0 and hasattr(kernel, "into"):
+        kernel.into(same, *flat)
+    else:
+        kernel(*flat, target)
     if o is None:
         base[...] = target.reshape(base.shape)
     return out

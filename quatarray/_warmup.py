@@ -93,7 +93,9 @@ def _strided(a):
 def _each(f, *args, out=False, **kw):
     """``f(*args, **kw)`` with the array arguments contiguous, read-only and strided;
     with each array argument in turn reduced to its first row (broadcast against
-    the others' batch); and with ``out=`` if asked."""
+    the others' batch); and with ``out=`` if asked: a new array, a strided one, and
+    each array argument of the result's shape and type itself (the loops that know
+    `out` is an input, ``RowLoop.into``)."""
     batch = [i for i, a in enumerate(args) if isinstance(a, np.ndarray) and a.ndim > 0]
     for layout in (lambda a: a, _read_only, _strided):
         f(*[layout(a) if i in batch else a for i, a in enumerate(args)], **kw)
@@ -104,13 +106,10 @@ def _each(f, *args, out=False, **kw):
         r = f(*args, **kw)
         f(*args, out=np.empty_like(r), **kw)
         f(*args, out=_strided(np.empty_like(r)), **kw)
-
-
-def _out_is_last(f, *args):
-    """``f(*args, out=b)`` with b a copy of the last argument, itself: the kernel
-    variant for an ``out`` that is an input (rotation's, say)."""
-    b = args[-1].copy()
-    f(*args[:-1], b, out=b)
+        for i in batch:
+            if args[i].shape == r.shape and args[i].dtype == r.dtype:
+                b = args[i].copy()
+                f(*[b if j == i else a for j, a in enumerate(args)], out=b, **kw)
 
 
 def _interp(f, s, *extra, **kw):
@@ -182,7 +181,7 @@ TABLE = {
     "mean": _f("mean", lambda f, s: (_each(f, s.p), f(s.p, weights=s.s))),
     # rotation
     "rotate": _f("rotate", lambda f, s: (
-        _each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True), _out_is_last(f, s.p, s.v))),
+        _each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True))),
     # conversions
     "as_matrix": _f("as_matrix", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_matrix": _f("from_matrix", lambda f, s: (

@@ -115,6 +115,41 @@ def test_out_and_aliasing(rng):
     assert np.array_equal(big[:, ::2], qa.multiply(p, q))
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("variant", ["serial", "parallel"])
+def test_out_is_an_input_everywhere(rng, dtype, variant):
+    """``out=`` an input itself gives the bits of a new array, for every element-wise
+    function whose result has an input's shape, contiguous or strided, far rows
+    included; serial calls take the loops that know it (RowLoop.into)."""
+    from quatarray import _jit, algebra
+
+    n = 300
+    p, q = (qa.random(n, rng) * rng.uniform(0.5, 2, (n, 1))).astype(dtype), qa.random(n, rng).astype(dtype)
+    p[::7] *= 1e30  # far rows: the second pass reads the input where the first pass left it
+    t = rng.random(n).astype(dtype)
+    cases = {
+        "multiply 0": (qa.multiply, (p, q), 0), "multiply 1": (qa.multiply, (p, q), 1),
+        "conjugate": (qa.conjugate, (p,), 0), "inverse": (qa.inverse, (p,), 0),
+        "normalize": (qa.normalize, (p,), 0), "exp": (qa.exp, (0.1 * q,), 0), "log": (qa.log, (p,), 0),
+        "power": (qa.power, (q, t), 0), "canonical": (qa.canonical, (p,), 0),
+        "rotate": (qa.rotate, (p, rng.normal(size=(n, 3)).astype(dtype)), 1),
+        "slerp": (qa.slerp, (q, qa.random(n, rng).astype(dtype), t), 0),
+    }
+    with _jit.variant(variant):
+        for name, (f, args, k) in cases.items():
+            want = f(*args)
+            for strided in (False, True):
+                a = args[k].copy()
+                if strided:
+                    big = np.zeros(a.shape[:-1] + (2 * a.shape[-1],), dtype)
+                    big[..., ::2] = a
+                    a = big[..., ::2]
+                got = f(*[a if j == k else x for j, x in enumerate(args)], out=a)
+                assert got is a and np.array_equal(a, want, equal_nan=True), (name, strided)
+    if variant == "serial":
+        assert algebra._multiply._into and algebra._normalize.first._into
+
+
 @pytest.mark.parametrize(
     "bad, msg",
     [
