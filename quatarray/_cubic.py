@@ -15,14 +15,16 @@ whose right side depends on the rates: as scipy does, the system is solved up
 to 10 times, each time with the right side of the last rates, until no rate
 moves by more than 1e-9·(1 + |ω|). Float64 whatever the keys' type, as scipy
 computes (:func:`_setup`). What is the same for every step (the rotation
-vectors, the functions of their angles, the 3×3 matrices, all polynomials in
-[r]×) is computed with numpy, vectorised, which needs no compiling, and so
-is the right side of each pass; the one kernel, :func:`_banded`, does what
-runs along the keys: it factors the block-tridiagonal matrix (3×3 blocks,
-block diagonally dominant), held as a band of 11 diagonals, once by LU, and
-makes the two substitutions of each pass. It is kept to few statements, since
-each costs compile time on the first call (a setup of many small 3×3 element
-functions took 3 s of it; the right side in the kernel, 0.3 s). Then
+vectors, the functions of their angles, J(r) and J(r)⁻¹, polynomials in [r]×)
+is computed with numpy, vectorised, which needs no compiling. Two kernels do
+what runs along the keys: :func:`_factor` factors the block-tridiagonal matrix
+(3×3 blocks, block diagonally dominant), held as a band of 11 diagonals, once
+by LU, and :func:`_rate_pass` makes each pass: the right side of a block as
+the forward substitution reaches it, the back substitution, and scipy's test,
+reading each array once (the right side in numpy took 9 of a pass's 17 ms at
+1.25·10⁵ keys, and the whole setup twice the time). They are kept to few
+statements, since each costs compile time on the first call (a setup of many
+small 3×3 element functions took 3 s of it; the two kernels take 0.6 s). Then
 ρ(τ) = c2 τ + c1 τ² + c0 τ³ with
 c2 = ω_n, c1 = (3r − 2hω_n − hρ'_n)/h², c0 = (−2r + hω_n + hρ'_n)/h³,
 ρ'_n = J(r_n)⁻¹ ω_{n+1}.
@@ -103,36 +105,67 @@ def _matrices(r, rr, coeffs):
 
 
 @kernel
-def _banded(band, x, factor):
-    """The block-tridiagonal system held by diagonals: `band` (N + KL, 2KL + 1) holds entry
-    (i, c) at ``band[i, c − i + KL]`` (its last KL rows the identity, so that no loop
-    needs a bound). `factor`: replace it by its LU factors, in place, without pivoting
-    (the matrix is block diagonally dominant), the pivots' reciprocals on the diagonal;
-    else solve L U y = ``x[KL : KL + N]`` in place (`x` padded with KL zeros both sides).
+def _factor(band):
+    """Replace the block-tridiagonal matrix held by diagonals in `band` (N + KL, 2KL + 1:
+    entry (i, c) at ``band[i, c − i + KL]``, its last KL rows the identity, so that no
+    loop needs a bound) by its LU factors, in place, without pivoting (the matrix is
+    block diagonally dominant), the pivots' reciprocals on the diagonal."""
+    for i in range(band.shape[0] - KL):
+        band[i, KL] = 1.0 / band[i, KL]
+        for k in range(1, KL + 1):
+            f = band[i + k, KL - k] * band[i, KL]
+            band[i + k, KL - k] = f
+            for c in range(1, KL + 1):
+                band[i + k, KL - k + c] -= f * band[i, KL + c]
 
-    The only compiled part of the setup (the recurrences along the keys), in few
-    statements: each statement of a kernel costs compile time on the first call."""
-    n3 = band.shape[0] - KL
-    if factor:
-        for i in range(n3):
-            band[i, KL] = 1.0 / band[i, KL]
-            for k in range(1, KL + 1):
-                f = band[i + k, KL - k] * band[i, KL]
-                band[i + k, KL - k] = f
-                for c in range(1, KL + 1):
-                    band[i + k, KL - k + c] -= f * band[i, KL + c]
-        return
-    # the nearest neighbour last: each row then waits for the one before by one multiply-add
-    for i in range(n3):
-        e = x[KL + i]
-        for c in range(KL, 0, -1):
-            e -= band[i, KL - c] * x[KL + i - c]
-        x[KL + i] = e
-    for i in range(n3 - 1, -1, -1):
+
+@kernel
+def _rate_pass(band, x, w, jinv, r, j1, j2, k2, b0):
+    """One pass of the rate iteration, in place: the right side b0 − N(r_j, J(r_j)⁻¹ ω_{j+1})
+    of the rates `w` (3, n), the two substitutions of the factored `band` (:func:`_factor`)
+    into ``x[KL : KL + 3n]`` (padded with KL zeros both sides), then the new rates into
+    `w`. Returns whether no rate moved by more than TOL·(1 + |ω|) (scipy's test).
+
+    With v = J(r)⁻¹ω (`jinv` its 9 entries per step, row-major) and c = r × v:
+    N(r, v) = (r·ω)(j1 c + j2 r × c) + k2 v × c. The right side of a block is made as
+    the forward substitution reaches it, so a pass reads each array once."""
+    n = w.shape[1]
+    for j in range(n):
+        w0, w1, w2 = w[0, j], w[1, j], w[2, j]
+        r0, r1, r2 = r[0, j], r[1, j], r[2, j]
+        v0 = jinv[0, j] * w0 + jinv[1, j] * w1 + jinv[2, j] * w2
+        v1 = jinv[3, j] * w0 + jinv[4, j] * w1 + jinv[5, j] * w2
+        v2 = jinv[6, j] * w0 + jinv[7, j] * w1 + jinv[8, j] * w2
+        c0, c1, c2 = r1 * v2 - r2 * v1, r2 * v0 - r0 * v2, r0 * v1 - r1 * v0
+        f = r0 * w0 + r1 * w1 + r2 * w2
+        g1, g2 = f * j1[j], f * j2[j]
+        x[KL + 3 * j] = b0[0, j] - (g1 * c0 + g2 * (r1 * c2 - r2 * c1) + k2[j] * (v1 * c2 - v2 * c1))
+        x[KL + 3 * j + 1] = b0[1, j] - (g1 * c1 + g2 * (r2 * c0 - r0 * c2) + k2[j] * (v2 * c0 - v0 * c2))
+        x[KL + 3 * j + 2] = b0[2, j] - (g1 * c2 + g2 * (r0 * c1 - r1 * c0) + k2[j] * (v0 * c1 - v1 * c0))
+        # the nearest neighbour last: each row then waits for the one before by one multiply-add
+        for i in range(3 * j, 3 * j + 3):
+            e = x[KL + i]
+            for c in range(KL, 0, -1):
+                e -= band[i, KL - c] * x[KL + i - c]
+            x[KL + i] = e
+    for i in range(3 * n - 1, -1, -1):
         e = x[KL + i]
         for c in range(KL, 0, -1):
             e -= band[i, KL + c] * x[KL + i + c]
         x[KL + i] = e * band[i, KL]
+    done = True
+    for j in range(n):
+        for a in range(3):
+            s = x[KL + 3 * j + a]
+            done = done and abs(s - w[a, j]) < TOL * (1.0 + abs(s))
+            w[a, j] = s
+    return done
+
+
+def _blocks(band, first, shape, strides):
+    """The entries ``band.flat[first + Σ strides·index]`` as an array of `shape` (writable)."""
+    flat = band.reshape(-1)
+    return np.lib.stride_tricks.as_strided(flat[first:], shape, [k * flat.strides[0] for k in strides])
 
 
 def _setup(q, dt, coef):
@@ -151,39 +184,29 @@ def _setup(q, dt, coef):
     passes = 0
     n = m - 1  # unknown rates: keys 1 … K−2
     if n > 0:
-        # J(r), J(r)⁻¹, and for N(r, ·): [r]× J(r)⁻¹, (j1[r]× + j2[r]×²) J(r)⁻¹ (all polynomials
-        # in [r]×; [r]×³ = −|r|²[r]×)
-        mats = _matrices(r, rr, [(1.0, -k1, k2), (1.0, 0.5, ki), (0.0, 1.0 - ki * rr, 0.5),
-                                 (0.0, j1 - rr * (j1 * ki + 0.5 * j2), 0.5 * j1 + j2 - rr * j2 * ki)])
-        # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹
-        band = np.zeros((3 * n + KL, 2 * KL + 1))
+        jac, jinv = _matrices(r, rr, [(1.0, -k1, k2), (1.0, 0.5, ki)])  # J(r), J(r)⁻¹
+        # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹;
+        # block j's row a, column b of each is band.flat[33j + 10a + b + 2], [33j + 11a + 5],
+        # [33j + 10a + b + 8] (W = 2KL + 1 = 11 entries a row)
+        W = 2 * KL + 1
+        band = np.zeros((3 * n + KL, W))
         band[3 * n :, KL] = 1.0
-        rows = band[: 3 * n].reshape(n, 3, 2 * KL + 1)
         g = 2.0 / dt[1:n]
-        for a in range(3):
-            rows[1:, a, 2 - a : 5 - a] = (g * mats[0, 3 * a : 3 * a + 3, 1:n]).T
-            rows[:, a, KL] = 4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:])
-            rows[:-1, a, 8 - a : 11 - a] = (g * mats[1, 3 * a : 3 * a + 3, 1:n]).T
+        _blocks(band, 2, (n, 3, 3), (3 * W, W - 1, 1))[1:] = (g * jac[:, 1:n]).T.reshape(n - 1, 3, 3)
+        _blocks(band, KL, (n, 3), (3 * W, W))[...] = (4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:]))[:, None]
+        _blocks(band, 8, (n, 3, 3), (3 * W, W - 1, 1))[:-1] = (g * jinv[:, 1:n]).T.reshape(n - 1, 3, 3)
         b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
-        b0[:, 0] -= 2.0 / dt[0] * (mats[0, :, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
-        b0[:, -1] -= 2.0 / dt[-1] * (mats[1, :, -1].reshape(3, 3) @ rate[:, -1])
+        b0[:, 0] -= 2.0 / dt[0] * (jac[:, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
+        b0[:, -1] -= 2.0 / dt[-1] * (jinv[:, -1].reshape(3, 3) @ rate[:, -1])
         x = np.zeros(3 * n + 2 * KL)
-        _banded(band, x, True)
-        # N(r_j, v) = (r·ω)(j1[r]× + j2[r]×²) v + k2 v × [r]× v, v = J(r_j)⁻¹ω (r·v = r·ω): the three
-        # matrices applied to ω at once, each pass
-        m3 = mats[1:, :, :-1].reshape(9, 3, n)
-        rj, k2j = r[:, :-1], k2[:-1]
-        w = rate[:, 1:-1]
-        sol = x[KL : KL + 3 * n].reshape(n, 3).T
+        _factor(band)
+        w = np.ascontiguousarray(rate[:, 1:-1])
+        args = (np.ascontiguousarray(jinv[:, :-1]), np.ascontiguousarray(r[:, :-1]), j1[:-1], j2[:-1], k2[:-1], b0)
         while passes < MAX_ITER:
             passes += 1
-            y = np.einsum("abj,bj->aj", m3, w)
-            sol[...] = b0 - (np.einsum("aj,aj->j", rj, w) * y[6:] + k2j * _cross(y[:3], y[3:6]))
-            _banded(band, x, False)
-            done = np.all(np.abs(sol - w) < TOL * (1.0 + np.abs(sol)))
-            w[...] = sol
-            if done:
+            if _rate_pass(band, x, w, *args):
                 break
+        rate[:, 1:-1] = w
     ws, h = rate[:, :-1], dt
     c1 = _cross(r, rate[:, 1:])
     rd = rate[:, 1:] + 0.5 * c1 + ki * _cross(r, c1)  # ρ'(h) = J(r)⁻¹ ω_{n+1}; ρ'(0) = ω_n
