@@ -186,15 +186,15 @@ def _setup(q, dt, coef):
     if n > 0:
         jac, jinv = _matrices(r, rr, [(1.0, -k1, k2), (1.0, 0.5, ki)])  # J(r), J(r)⁻¹
         # row j (key j + 1): left 2/h_j J(r_j), diagonal 4(1/h_j + 1/h_{j+1}) I, right 2/h_{j+1} J(r_{j+1})⁻¹;
-        # block j's row a, column b of each is band.flat[33j + 10a + b + 2], [33j + 11a + 5],
-        # [33j + 10a + b + 8] (W = 2KL + 1 = 11 entries a row)
+        # block j's row a, column b of each is band.flat[3Wj + (W − 1)a + b + KL − 3], [3Wj + Wa + KL],
+        # [3Wj + (W − 1)a + b + KL + 3] (W = 2KL + 1 entries a row)
         W = 2 * KL + 1
         band = np.zeros((3 * n + KL, W))
         band[3 * n :, KL] = 1.0
         g = 2.0 / dt[1:n]
-        _blocks(band, 2, (n, 3, 3), (3 * W, W - 1, 1))[1:] = (g * jac[:, 1:n]).T.reshape(n - 1, 3, 3)
+        _blocks(band, KL - 3, (n, 3, 3), (3 * W, W - 1, 1))[1:] = (g * jac[:, 1:n]).T.reshape(n - 1, 3, 3)
         _blocks(band, KL, (n, 3), (3 * W, W))[...] = (4.0 * (1.0 / dt[:-1] + 1.0 / dt[1:]))[:, None]
-        _blocks(band, 8, (n, 3, 3), (3 * W, W - 1, 1))[:-1] = (g * jinv[:, 1:n]).T.reshape(n - 1, 3, 3)
+        _blocks(band, KL + 3, (n, 3, 3), (3 * W, W - 1, 1))[:-1] = (g * jinv[:, 1:n]).T.reshape(n - 1, 3, 3)
         b0 = 6.0 * (r[:, :-1] / dt[:-1] ** 2 + r[:, 1:] / dt[1:] ** 2)
         b0[:, 0] -= 2.0 / dt[0] * (jac[:, 0].reshape(3, 3) @ rate[:, 0])  # the known end rates, to the right side
         b0[:, -1] -= 2.0 / dt[-1] * (jinv[:, -1].reshape(3, 3) @ rate[:, -1])
