@@ -56,6 +56,9 @@ with event.install_listener("numba:compile", rec):
     ro.flags.writeable = False
     qa.as_matrix(ro)
     qa.multiply(big[0], big[:10])
+    m = big[:10].copy()
+    qa.multiply(big[0], m, out=m)  # out= an input (RowLoop.into), the other one row against many
+    qa.multiply(m, big[0], out=m)
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
 print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
