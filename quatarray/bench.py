@@ -55,20 +55,21 @@ def measure(fns, budget=1.5, min_rounds=3, max_rounds=25, slow=3.0):
     """Best time per call of each of ``fns`` (a dict), timed in interleaved rounds.
 
     Each callable is called once to warm up (numba compiles or loads its
-    cache then); a round calls every candidate ``reps`` times, ``reps`` chosen
-    so a call batch lasts at least ~20 ms. Where that is a few calls, each
+    cache then), and once more when that took over 20 ms; a round calls every
+    candidate ``reps`` times, ``reps`` chosen from the last of those calls so
+    a call batch lasts at least ~20 ms. Where that is a few calls, each
     batch follows one untimed call: the first call after another library's
     may find the memory it frees handed back to the system and pay for fresh
     pages (for a spline's temporaries, up to 3× the call), which a batch of
     one or two calls would count in full and a longer batch mostly not.
     Rounds continue until ``budget`` seconds are spent (at least
-    ``min_rounds``). A candidate whose first call takes more than ``slow``
+    ``min_rounds``). A candidate whose second call takes more than ``slow``
     seconds is timed by that call alone.
     """
     reps, best, done = {}, {}, set()
     for name, fn in fns.items():
         t = _once(fn)  # warm-up: may include numba compiling or loading its cache
-        if t > slow:
+        if t > 0.02:  # a batch of one call, or a compile: the second call sets reps
             t = _once(fn)
             if t > slow:  # one call says enough; keep the rounds for the others
                 done.add(name)
