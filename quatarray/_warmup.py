@@ -95,8 +95,9 @@ def _each(f, *args, out=False, **kw):
     with each array argument in turn reduced to its first row (broadcast against
     the others' batch); and with ``out=`` if asked: a new array, a strided one, and
     each array argument of the result's shape and type itself (the loops that know
-    `out` is an input, ``RowLoop.into``), also with each other array argument
-    reduced to its first row (a scalar parameter, one row against many)."""
+    `out` is an input, ``RowLoop.into``), contiguous and strided, and contiguous
+    with each other array argument reduced to its first row (a scalar parameter,
+    one row against many)."""
     batch = [i for i, a in enumerate(args) if isinstance(a, np.ndarray) and a.ndim > 0]
     for layout in (lambda a: a, _read_only, _strided):
         f(*[layout(a) if i in batch else a for i, a in enumerate(args)], **kw)
@@ -109,8 +110,8 @@ def _each(f, *args, out=False, **kw):
         f(*args, out=_strided(np.empty_like(r)), **kw)
         for i in batch:
             if args[i].shape == r.shape and args[i].dtype == r.dtype:
-                for row in [None] + [j for j in batch if j != i]:
-                    b = args[i].copy()
+                for row, layout in [(None, np.copy), (None, _strided)] + [(j, np.copy) for j in batch if j != i]:
+                    b = layout(args[i])
                     f(*[b if j == i else a[0] if j == row else a for j, a in enumerate(args)], out=b, **kw)
 
 

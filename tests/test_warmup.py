@@ -59,6 +59,9 @@ with event.install_listener("numba:compile", rec):
     m = big[:10].copy()
     qa.multiply(big[0], m, out=m)  # out= an input (RowLoop.into), the other one row against many
     qa.multiply(m, big[0], out=m)
+    st = np.zeros((20, 4))[::2]
+    st[...] = big[:10]
+    qa.normalize(st, out=st)  # out= a strided input itself
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
 print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
