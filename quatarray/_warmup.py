@@ -115,6 +115,13 @@ def _each(f, *args, out=False, **kw):
                     f(*[b if j == i else a[0] if j == row else a for j, a in enumerate(args)], out=b, **kw)
 
 
+def _rotate_into_v(f, q, v):
+    """rotate(q, v, out=v) for one q of shape (1, 4): rotation's own loop for `out` = v
+    (not a RowLoop.into copy) meets q's broadcast rows as another type than a q of (4,)."""
+    b = v.copy()
+    f(q, b, out=b)
+
+
 def _interp(f, s, *extra, **kw):
     """An interpolation function of ``(*quaternions, t)``: N pairs and N t, scalar t,
     one pair and N t."""
@@ -184,7 +191,7 @@ TABLE = {
     "mean": _f("mean", lambda f, s: (_each(f, s.p), f(s.p, weights=s.s))),
     # rotation
     "rotate": _f("rotate", lambda f, s: (
-        _each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True))),
+        _each(f, s.p, s.v, out=True), _each(f, s.far, s.v, out=True), _rotate_into_v(f, s.p[:1], s.v))),
     # conversions
     "as_matrix": _f("as_matrix", lambda f, s: (_each(f, s.p, out=True), _each(f, s.far, out=True))),
     "from_matrix": _f("from_matrix", lambda f, s: (

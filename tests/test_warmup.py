@@ -25,7 +25,7 @@ import quatarray as qa
 from quatarray import _warmup
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-WARM = ["multiply", "normalize", "as_matrix", "from_matrix", "as_euler"]
+WARM = ["multiply", "normalize", "rotate", "as_matrix", "from_matrix", "as_euler"]
 WARM32 = ["multiply"]
 
 # In the new process: the warm-up's calls (each timed, with its compile count),
@@ -62,6 +62,8 @@ with event.install_listener("numba:compile", rec):
     st = np.zeros((20, 4))[::2]
     st[...] = big[:10]
     qa.normalize(st, out=st)  # out= a strided input itself
+    v = big[:10, 1:].copy()
+    qa.rotate(big[:1], v, out=v)  # rotation's own loop for out= v, one q of shape (1, 4)
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
 print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
