@@ -6,12 +6,11 @@ calls, counting numba's compile events (``numba:compile`` is broadcast only
 when a dispatcher really compiles, not when it loads from the cache).
 
 It warms a representative part of the table (``WARM``: row loops of
-algebra, conversions and Euler angles, serial and parallel, every layout) in
-float64 and one function in float32: about 50 s on a loaded two-core machine
-(20 s idle). The interpolation kernels are left out while they take about a
-minute each to compile (a spline, slerp: 30-60 s per variant, the Bézier
-spline twice that). ``QUATARRAY_TEST_WARMUP=all`` warms and checks the whole
-table instead (float64; many minutes).
+algebra, rotation, conversions and Euler angles, serial and parallel, every
+layout) in float64 and one function in float32: 25-35 s on a two-core
+machine. The interpolation kernels are left out to keep it so (the whole
+table takes about 80 s of warm-up on two cores). ``QUATARRAY_TEST_WARMUP=all``
+warms and checks the whole table instead (float64).
 """
 
 import json
