@@ -19,7 +19,9 @@ from ._validate import as_float, elementwise
 # which stores into v itself: LLVM then sees each row read before it is
 # written, and vectorises the loop (with `out` a second array that may overlap
 # v it checks their ranges at run time and runs the scalar loop, 4-6x slower).
-# It leaves the far rows holding v (a select per component) for the second pass.
+# It leaves the far rows holding v (a select per component) for the second pass,
+# which is why rotate keeps this copy rather than the generic RowLoop.into copy
+# (elementwise's route for `out` an input), which would store over them.
 
 INTO_V = False  # rebound to True in _rotate_into
 

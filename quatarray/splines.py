@@ -699,7 +699,7 @@ def _unit_unflip(p, out, a, flip0):
         i0 = a + base
         for k in range(m):
             E.store4(out, i0 + k, E.qnormalize(E.load4(p, base + k)))
-        r = E.load4(out, i0)  # the unit row before, as normalised
+        r = E.load4(out, i0)  # the block's first unit row: the row before of the next
         if i0 == 0:
             neg = flip0
         else:  # the row before is final: compare with it as it stands
@@ -715,6 +715,7 @@ def _unit_unflip(p, out, a, flip0):
             f = -one if neg else one
             E.store4(out, i0 + k, (f * u[0], f * u[1], f * u[2], f * u[3]))
             r = u
+
 
 def resample_unit(t, nt, q, method, order=0):
     """:func:`spline` on times `t`, new times `nt` (as :func:`plan_times` gives them)
