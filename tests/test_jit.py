@@ -108,3 +108,27 @@ def test_serial_thread_beside_a_large_parallel_call():
     assert ("parallel", mine) in ran and ("serial", mine) not in ran
     assert [r[0] for r in ran if r[1] != mine] == ["serial"]
     np.testing.assert_allclose(got[:5], [algebra.multiply(a, a) for a in q[:5]])
+
+
+_BLAS_SCRIPT = """
+import sys
+import numba, numpy as np
+import quatarray as qa
+from numba.np import linalg
+qa.multiply(np.ones((3, 4)), np.ones((3, 4)))  # compiles or loads: numba imports its np.arraymath
+from numba.np import arraymath
+before = "scipy.linalg" in sys.modules
+dot = numba.njit(lambda a, b: np.dot(a, b))(np.ones(3), np.ones(3))  # numba's BLAS path still works
+print(before, arraymath._HAVE_BLAS, linalg.ensure_blas.__name__, dot)
+"""
+
+
+def test_a_kernel_call_imports_no_scipy_linalg():
+    """numba's BLAS probe (an import of scipy.linalg, 0.25 s of a process's start) is
+    answered without importing it; np.dot in a kernel still finds BLAS."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", _BLAS_SCRIPT], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split() == ["False", "True", "ensure_blas", "3.0"]
