@@ -17,7 +17,7 @@ from numba.extending import overload
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
 from ._jit import (
     CACHE, INLINE_OPTIONS, RowLoop, bit_distance, element, exponent_scales, inline, ir_inline, like, prange, rowloop,
-    specialise,
+    prefer_no_gather, specialise,
 )
 from ._trig import atan2
 
@@ -181,6 +181,7 @@ def _far_loop(args):
         lo = b * FLAG_BLOCK
         m = min(n - lo, FLAG_BLOCK)
         flags = np.empty(FLAG_BLOCK, np.int32)
+        prefer_no_gather()
         for j in range(m):
             flags[j] = _PLAIN(lo + j, args)
         far = max(far, flags_max(flags, m))
@@ -190,6 +191,7 @@ def _far_loop(args):
 def _far_rows_again(*args):
     # the second pass of FarRows: each copy rebinds _SCALED
     for i in range(args[0].shape[0]):
+        prefer_no_gather()
         _SCALED(i, args)
 
 

@@ -12,7 +12,7 @@ vectors and axis–angle pairs live in :mod:`quatarray.conversions`.
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, inline, like, prange, rowloop
+from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, refuse_masked, shape_error
 
 Q = (4,)
@@ -97,6 +97,7 @@ def _from_su2(m, out):
     # m: float view (n, 2, 4) of complex (n, 2, 2); averages the two copies of
     # each component (the orthogonal projection onto [[a, b], [−b̄, ā]]).
     for i in prange(m.shape[0]):
+        prefer_no_gather()
         half = like(m, 0.5)
         E.store4(
             out,

@@ -3,7 +3,7 @@
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, prange, rowloop, specialise
+from ._jit import inline, prange, prefer_no_gather, rowloop, specialise
 from ._validate import as_float, elementwise
 
 
@@ -29,6 +29,7 @@ INTO_V = False  # rebound to True in _rotate_into
 def _rotate_rows(q, v, out):
     acc = E.far_start(q)
     for i in prange(q.shape[0]):
+        prefer_no_gather()
         a = E.load4(q, i)
         x = E.load3(v, i)
         n2 = E.qdot(a, a)

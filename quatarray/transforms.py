@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _elements as E
 from ._access import load33, store33
-from ._jit import element, inline, like, prange, rowloop
+from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
 from .conversions import from_matrix
@@ -210,6 +210,7 @@ def _matrix_vqm(v, q, m, out):
 def _lerp_vs(va, sa, vb, sb, t, vo, so):
     # v by lerp (exact at both ends), s by elerp s_a (s_b/s_a)^t = s_a^(1−t) s_b^t.
     for i in prange(va.shape[0]):
+        prefer_no_gather()
         t_ = t[i]
         u = like(t_, 1.0) - t_
         E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
