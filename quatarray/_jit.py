@@ -437,8 +437,10 @@ def prefer_no_gather(typingctx):
     Call it inside a row loop's ``prange`` body (numba outlines that body into a
     function of its own). On AVX-512 targets LLVM vectorises rows of nine (3×3
     matrices) by gathering and scattering every element; on Zen 4 that ran
-    ``as_matrix(out=)`` at 35 % of the STREAM triad and ``from_matrix(assume_valid=True)``
-    at 23 %, against 85 % and 54 % with the shuffles LLVM chooses instead. The
+    ``as_matrix(out=)`` at 31–38 % of the STREAM triad and ``from_matrix(assume_valid=True)``
+    at 22–28 %, against 79–87 % and 49–55 % with the shuffles LLVM chooses instead
+    (a loop that picks its columns at run time, as ``euler._as_euler``, needs its
+    gathers: without them it ran 4× slower). The
     function gets LLVM's ``target-features`` attribute: the target machine's own
     features and :data:`NO_GATHER_FEATURES`, which change only the instructions
     chosen (the results are bitwise the same). llvmlite's attribute set takes
