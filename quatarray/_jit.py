@@ -430,8 +430,7 @@ def flat_store(typingctx, a, j, v):
 NO_GATHER_FEATURES = "+prefer-no-gather,+prefer-no-scatter"
 
 
-@intrinsic
-def prefer_no_gather(typingctx):
+def prefer_no_gather():
     """Compile the function this is called in without vector gathers and scatters.
 
     Call it inside a row loop's ``prange`` body (numba outlines that body into a
@@ -446,17 +445,26 @@ def prefer_no_gather(typingctx):
     chosen (the results are bitwise the same). llvmlite's attribute set takes
     only LLVM's enumerated attributes and prints each member as it is, so the
     string attribute is added to it as a plain set member; where numba's codegen
-    has no ``_tm_features`` the function is left as it is."""
-    sig = types.none()
+    has no ``_tm_features`` the function is left as it is. In plain Python
+    (``NUMBA_DISABLE_JIT=1``) it does nothing."""
 
-    def codegen(context, builder, sig, args):
-        features = getattr(context.codegen(), "_tm_features", None)
-        if isinstance(features, str):
-            joined = f"{features},{NO_GATHER_FEATURES}" if features else NO_GATHER_FEATURES
-            set.add(builder.function.attributes, f'"target-features"="{joined}"')
-        return context.get_dummy_value()
 
-    return sig, codegen
+@type_callable(prefer_no_gather)
+def _type_prefer_no_gather(context):
+    # typed and lowered directly, as ``like``: the attribute goes on the caller's function
+    def typer():
+        return types.none
+
+    return typer
+
+
+@lower_builtin(prefer_no_gather)
+def _lower_prefer_no_gather(context, builder, sig, args):
+    features = getattr(context.codegen(), "_tm_features", None)
+    if isinstance(features, str):
+        joined = f"{features},{NO_GATHER_FEATURES}" if features else NO_GATHER_FEATURES
+        set.add(builder.function.attributes, f'"target-features"="{joined}"')
+    return context.get_dummy_value()
 
 
 def exponent_scales(m):
