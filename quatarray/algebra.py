@@ -455,7 +455,9 @@ def mean(q, weights=None, axis=None):
         Non-negative, broadcasting against the leading shape of `q`.
     axis : None, int or tuple of int, optional
         The leading axes to average over, as scipy 1.17: None (default) all of
-        them, ``()`` none (each rotation is its own mean).
+        them, ``()`` none (each rotation is its own mean). A single ``(4,)``
+        quaternion counts as one leading axis of length 1 (``axis=0`` or
+        ``-1`` give it back), as a single scipy ``Rotation`` does.
 
     Returns
     -------
@@ -472,6 +474,8 @@ def mean(q, weights=None, axis=None):
     (3, 4)
     """
     a = check_core(as_float(q, "q"), "q", Q)
+    if a.ndim == 1 and axis is not None:
+        a = a[None]  # one quaternion has one leading axis of length 1 for `axis`, as in scipy
     lead = a.shape[:-1]
     red = _reduce_axes(axis, len(lead))
     keep = tuple(k for k in range(len(lead)) if k not in red)
@@ -527,7 +531,9 @@ def _mean_bad_row(flat, w, lead):
 
 def approx_equal(p, q, atol=None, degrees=False):
     """Whether p and q are the same rotation within `atol`, as scipy's
-    ``Rotation.approx_equal``: ``distance(p, q) < atol`` (strictly less, as scipy).
+    ``Rotation.approx_equal``: ``distance(p, q) <= atol``. (scipy tests ``<``:
+    the two differ only at a distance of exactly `atol`, e.g. ``atol=0`` for
+    the same rotation, which is equal here and not in scipy.)
 
     Sign-blind (q and −q are the same rotation) and scale-blind; leading
     dimensions broadcast.
@@ -559,4 +565,4 @@ def approx_equal(p, q, atol=None, degrees=False):
         atol = 1e-8
     elif degrees:
         atol = np.deg2rad(atol)
-    return np.less(distance(p, q), atol)
+    return np.less_equal(distance(p, q), atol)

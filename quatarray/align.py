@@ -15,7 +15,6 @@ vectors, then the best turn about them for the other pairs.
 :func:`rotation_between` is that shortest arc, element-wise.
 """
 
-import math
 import warnings
 
 import numpy as np
@@ -32,6 +31,12 @@ _SEVERAL_INF = 1  # more than one infinite weight (scipy raises)
 _ZERO_PRIMARY = 2  # the primary (infinite-weight or only) pair has a zero vector (scipy raises)
 _FIXED = 4  # solved by the primary-pair path (no sensitivity matrix)
 _NOT_UNIQUE = 8  # the optimum is not unique (scipy warns)
+
+# s₁ + s₂ below this times s₀ (B's singular values) counts as not unique. scipy tests
+# 1e-16 on its SVD, below the rounding of either method: it warns on about 85 % of
+# exactly collinear sets. The gaps of davenport's eigenvalues are exact to about 3ε·s₀
+# (at most 6.9e-16·s₀ on 2000 random collinear sets), so this warns on all of them.
+NOT_UNIQUE = 2e-15
 
 # --------------------------------------------------------------------------
 # per-element math
@@ -59,28 +64,27 @@ def shortest_arc(b, a):
     """The rotation of least angle taking the direction of `b` to that of `a`,
     as scipy's ``align_vectors`` builds it for one pair: the turn by
     θ = atan2(|c|, a·b) about c = b × a (of the unit vectors), written
-    (cos(θ/2), c / (2 cos(θ/2))), exact for tiny θ; within 1e-3 rad of a
-    half turn, a half turn about c (for exactly antiparallel vectors about
-    :func:`perpendicular` of `a`) followed by the small remainder. A zero,
-    inf or nan vector gives nan."""
+    (cos(θ/2), sin(θ/2) c/|c|): a unit quaternion to rounding, accurate at
+    any angle, a half turn included (exactly antiparallel vectors: a half
+    turn about :func:`perpendicular` of `a`; equal directions: the
+    identity). A zero, inf or nan vector gives nan."""
     na = E.vnorm(a)
     nb = E.vnorm(b)
     a = (a[0] / na, a[1] / na, a[2] / na)
     b = (b[0] / nb, b[1] / nb, b[2] / nb)
     c = E.cross(b, a)
     cn = E.vnorm(c)
-    theta = np.arctan2(cn, a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+    d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    half = like(cn, 0.5)
     zero = like(cn, 0.0)
-    pi = like(cn, math.pi)
-    if pi - theta < like(cn, 1e-3):
-        r = c if cn != zero else perpendicular(a)
-        rn = E.vnorm(r)
-        ch = np.cos(like(cn, 0.5) * (pi - theta))
-        k = like(cn, -0.5) / ch
-        small = (ch, k * c[0], k * c[1], k * c[2])
-        return E.qmul(small, (zero, r[0] / rn, r[1] / rn, r[2] / rn))
-    ch = np.cos(like(cn, 0.5) * theta)
-    k = like(cn, 0.5) / ch
+    # sin(θ/2) and cos(θ/2) = sin((π − θ)/2), each from an angle that is small where it is:
+    # accurate near θ = 0 and near a half turn alike (w exactly 0 for antiparallel vectors)
+    sh = np.sin(half * np.arctan2(cn, d))
+    ch = np.sin(half * np.arctan2(cn, -d))
+    if cn == zero and d < zero:
+        c = perpendicular(a)
+        cn = E.vnorm(c)
+    k = sh / cn if cn > zero else sh * zero  # θ = 0: the identity (nan stays nan)
     return (ch, k * c[0], k * c[1], k * c[2])
 
 
@@ -109,9 +113,14 @@ def davenport(bm, m):
     )  # fmt: skip
     # scaled to a largest entry of 1 (no overflow or underflow in the rotations)
     c = 0.0
+    total = 0.0
     for x in k:
         c = abs(x) if abs(x) > c else c
-    if not (c > 0.0 and c < np.inf):
+        total += abs(x)
+    if not total < np.inf:  # a nan or inf in B: no rotation (the iteration would stop at once)
+        nan = np.nan
+        return (nan, nan, nan, nan), nan, nan, nan, nan
+    if not c > 0.0:
         c = 1.0
     # m: K, then the eigenvectors V (columns), from the identity
     for i in range(16):
@@ -178,11 +187,13 @@ def davenport(bm, m):
 
 @element
 def load_pair(a, b, w, p, i):
-    """Pair i of problem p as float64: (a_i, b_i, w_i)."""
+    """Pair i of problem p as float64: (a_i, b_i, w_i). (``np.float64``: numba's
+    ``float()`` of a float32 stays float32.)"""
+    f = np.float64
     return (
-        (float(a[p, i, 0]), float(a[p, i, 1]), float(a[p, i, 2])),
-        (float(b[p, i, 0]), float(b[p, i, 1]), float(b[p, i, 2])),
-        float(w[p, i]),
+        (f(a[p, i, 0]), f(a[p, i, 1]), f(a[p, i, 2])),
+        (f(b[p, i, 0]), f(b[p, i, 1]), f(b[p, i, 2])),
+        f(w[p, i]),
     )
 
 
@@ -276,7 +287,7 @@ def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
             else:
                 q, lam, zeta, kappa, gmin = davenport(bm, scratch[blk])
                 rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
-                if gmin < 1e-16 * (lam - gmin):
+                if gmin < NOT_UNIQUE * (lam - gmin):
                     flag = _NOT_UNIQUE
                 # what scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) needs (see davenport;
                 # formed by the front end only when asked for)
@@ -306,8 +317,13 @@ def _align_fixed(problems, a, b, w, q_out, rssd_out):
 
 @rowloop
 def _rotation_between(u, v, out):
+    # in float64 whatever the inputs' type: near a half turn the axis u × v loses what
+    # float32 arithmetic would round away (5e-5 rad at 1e-3 rad from antiparallel)
     for i in prange(u.shape[0]):
-        E.store4(out, i, shortest_arc(E.load3(u, i), E.load3(v, i)))
+        a = E.load3(u, i)
+        b = E.load3(v, i)
+        f = np.float64
+        E.store4(out, i, shortest_arc((f(a[0]), f(a[1]), f(a[2])), (f(b[0]), f(b[1]), f(b[2]))))
 
 
 # --------------------------------------------------------------------------
@@ -342,10 +358,12 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
     More than one infinite weight in a problem, a zero vector in the primary
     (infinite-weight or only) pair, or a negative weight raise ``ValueError``
     naming the problem, as scipy does. When the optimum is not unique
-    (collinear vectors: s₁ + s₂ < 10⁻¹⁶ s₀ for B's singular values) one
-    ``UserWarning`` per call says how many problems are affected, as scipy
-    warns; the rotation returned is then one of the optimal ones (not
-    necessarily scipy's).
+    (collinear vectors in `a` or in `b`: s₁ + s₂ < 2·10⁻¹⁵ s₀ for B's
+    singular values, see :data:`NOT_UNIQUE`) one ``UserWarning`` per call
+    says how many problems are affected, as scipy warns; the rotation
+    returned is then one of the optimal ones, with scipy's `rssd`, but not
+    necessarily scipy's rotation (which is whichever LAPACK's SVD picks). A
+    nan or inf in a problem's vectors or weights gives nan for it.
 
     Parameters
     ----------
@@ -473,7 +491,8 @@ def rotation_between(u, v, out=None):
     of v's smallest |component| (the first of equals) and v̂ = v/|v|, the axis
     is (0, −v̂_z, v̂_y) for i = 0, (v̂_z, 0, −v̂_x) for i = 1 and
     (−v̂_y, v̂_x, 0) for i = 2. Zero, inf or nan vectors give nan.
-    The lengths of `u` and `v` do not matter.
+    The lengths of `u` and `v` do not matter. Computed in float64 whatever
+    the inputs' type (float32 results are the float64 ones rounded).
 
     Parameters
     ----------

@@ -592,6 +592,15 @@ def test_concurrent_threads_on_workqueue_layer(tmp_path):
 def test_mean_axis_matches_scipy(rng):
     from scipy.spatial.transform import Rotation as R
 
+    # one quaternion: one leading axis of length 1 for `axis`, as a single scipy Rotation
+    one = qa.from_rotvec([0.1, -0.2, 0.3])
+    for axis in [None, 0, -1, (0,), ()]:
+        want = R.from_quat(one, scalar_first=True).mean(axis=axis).as_quat(scalar_first=True)
+        got = qa.mean(one, axis=axis)
+        assert got.shape == np.shape(want) and qa.distance(got, want).max() < 1e-12
+    with pytest.raises(ValueError, match="axis"):
+        qa.mean(one, axis=1)
+
     q = qa.random((3, 4, 5), rng=rng)
     w = rng.random((3, 4, 5))
     r = R.from_quat(q, scalar_first=True)
@@ -631,4 +640,7 @@ def test_approx_equal_matches_scipy(rng):
         qa.approx_equal(p, q, degrees=True)
     assert qa.approx_equal(p[:, None], p[None, :10]).shape == (500, 10)
     assert qa.approx_equal(p[0], p[0]).dtype == np.bool_
+    # API.md: distance <= atol (scipy tests <: they differ only at a distance of exactly atol)
+    assert qa.approx_equal([1, 0, 0, 0], [-2, 0, 0, 0], atol=0)
+    assert qa.approx_equal([1, 0, 0, 0], qa.from_rotvec([0, 0, 0.5]), atol=qa.distance([1, 0, 0, 0], qa.from_rotvec([0, 0, 0.5])))
     assert qa.approx_equal(p.astype(np.float32), p.astype(np.float32), 1e-3).all()

@@ -212,3 +212,57 @@ def test_rotation_between(rng):
     out = np.empty((200, 4))
     assert qa.rotation_between(u, v, out=out) is out
     np.testing.assert_array_equal(out, q)
+
+
+def test_nan_and_inf_inputs_give_nan(rng):
+    # a nan anywhere in a problem: nan for that problem (not the identity), the others unchanged
+    a = rng.standard_normal((3, 4, 3))
+    b = qa.rotate(qa.random(3, rng=rng)[:, None], a)
+    q_ok, r_ok, s_ok = qa.align_vectors(a, b, return_sensitivity=True)
+    for arr, idx in [("a", (1, 2, 0)), ("b", (1, 0, 1)), ("w", (1, 3))]:
+        a2, b2, w2 = a.copy(), b.copy(), np.ones((3, 4))
+        {"a": a2, "b": b2, "w": w2}[arr][idx] = np.nan
+        q, r, sens = qa.align_vectors(a2, b2, w2, return_sensitivity=True)
+        assert np.isnan(q[1]).all() and np.isnan(r[1]) and np.isnan(sens[1]).all()
+        np.testing.assert_array_equal(q[[0, 2]], q_ok[[0, 2]])
+        np.testing.assert_array_equal(r[[0, 2]], r_ok[[0, 2]])
+    q, r = qa.align_vectors([[np.nan, 0, 0], [0, 1, 0]], [[1, 0, 0], [0, 1, 0]])
+    assert np.isnan(q).all() and np.isnan(r)
+    q, r = qa.align_vectors([[np.inf, 0, 0], [0, 1, 0]], [[1, 0, 0], [0, 1, 0]])
+    assert np.isnan(q).all()
+
+
+def test_collinear_sets_always_warn(rng):
+    # exactly collinear a or b: the optimum is not unique; every such problem warns (scipy's
+    # 1e-16 test, below the rounding of its SVD, misses some), and the fit is still optimal
+    for i in range(200):
+        u, v = rng.standard_normal(3), rng.standard_normal(3)
+        f = rng.standard_normal(int(rng.integers(2, 6)))
+        a, b = f[:, None] * u, (f * rng.uniform(0.5, 2, f.size))[:, None] * v
+        with pytest.warns(UserWarning, match="not uniquely"):
+            q, rssd = qa.align_vectors(a, b)
+        np.testing.assert_allclose(rssd, scipy_align(a, b)[1], atol=1e-6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # and a generic set does not warn
+        qa.align_vectors(rng.standard_normal((500, 3, 3)), rng.standard_normal((500, 3, 3)))
+
+
+def test_float32_near_antiparallel_is_unit_and_accurate(rng):
+    # the shortest arc is computed in float64: float32 results are the float64 ones rounded
+    u = rng.standard_normal((20_000, 3))
+    v = -u + rng.standard_normal(u.shape) * 10 ** rng.uniform(-5, 0, (20_000, 1))
+    u32, v32 = u.astype(np.float32), v.astype(np.float32)
+    q32 = qa.rotation_between(u32, v32)
+    q64 = qa.rotation_between(u32.astype(float), v32.astype(float))
+    assert q32.dtype == np.float32
+    assert np.abs(np.linalg.norm(q32.astype(float), axis=1) - 1).max() < 3e-7
+    assert qa.distance(q32.astype(float), q64).max() < 1e-6
+    one = qa.align_vectors(v32[:50, None], u32[:50, None])[0]  # one pair per problem: the same arc
+    assert one.dtype == np.float32 and qa.distance(one.astype(float), q64[:50]).max() < 1e-6
+    # the example the float32 arithmetic got 5.4e-5 rad wrong (norm 1.00012)
+    u1, v1 = np.float32([0.24333124, -0.7858214, 0.5492702]), np.float32([-0.2426596, 0.7865856, -0.5490437])
+    assert qa.distance(qa.rotation_between(u1, v1).astype(float), qa.rotation_between(u1 * 1.0, v1 * 1.0)) < 1e-6
+    # near a half turn and at exactly one, against scipy in float64
+    for i in range(300):
+        assert qa.distance(qa.rotation_between(u[i], v[i]), scipy_align(v[i], u[i])[0]) < 1e-11
+    np.testing.assert_array_equal(qa.rotation_between([0.0, 0, 1], [0, 0, -1]), [0, 0, 1, 0])  # w exactly 0

@@ -45,6 +45,21 @@ def test_elementwise_bitwise(client, q, name, rows):
         assert same(run(client, lazy), expect)
 
 
+@pytest.mark.parametrize("seq", ["z", "X", "xy", "ZX", "zyx"])
+def test_from_euler_short_sequences_bitwise(client, seq):
+    ang = np.random.default_rng(5).uniform(-4, 4, (300, len(seq)))
+    for kw in ({}, {"degrees": True}):
+        lazy = qd.from_euler(seq, chunked(ang, 64), **kw)
+        expect = qa.from_euler(seq, ang, **kw)
+        assert lazy.shape == expect.shape and same(run(client, lazy), expect)
+    if len(seq) == 1:  # one angle about one axis, as in memory
+        assert same(qd.from_euler(seq, 0.5).compute(), qa.from_euler(seq, 0.5))
+    with pytest.raises(ValueError, match=rf"\(\.\.\., {len(seq)}\)"):
+        qd.from_euler(seq, chunked(np.zeros((10, len(seq) % 3 + 1)), 5))
+    with pytest.raises(ValueError, match="Expected `seq`"):
+        qd.from_euler(seq + seq[-1] * 3, chunked(ang, 64))
+
+
 def test_from_su2_bitwise(client):
     m = qa.as_su2(qa.random(50, rng=4))
     expect = qa.from_su2(m)

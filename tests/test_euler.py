@@ -436,3 +436,17 @@ def test_euler_short_sequences_rules():
     for seq in ["x", "xy", "ZX"]:
         with pytest.raises(ValueError, match="three axes"):  # scipy's as_euler: three axes only
             qa.as_euler([1, 0, 0, 0], seq)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from([s[:k] for s in SEQS for k in (1, 2)]),
+       st.lists(st.floats(-10, 10, allow_nan=False), min_size=2, max_size=2))
+def test_one_two_axes_are_products_of_elementary_turns(seq, angles):
+    # extrinsic: the later turns act on the left; intrinsic: on the right (as scipy)
+    turns = [qa.from_rotvec(np.eye(3)["xyz".index(c.lower())] * t) for c, t in zip(seq, angles)]
+    want = turns[0]
+    for t in turns[1:]:
+        want = qa.multiply(want, t) if seq.isupper() else qa.multiply(t, want)
+    got = qa.from_euler(seq, angles[: len(seq)])
+    assert qa.distance(got, want) < 1e-12
+    np.testing.assert_allclose(got, R.from_euler(seq, angles[: len(seq)]).as_quat(scalar_first=True), atol=1e-14)

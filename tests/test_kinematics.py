@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import quatarray as qa
 from quatarray import _jit
@@ -235,3 +237,21 @@ def test_scan_chains_equal_one_chain(rng, n, dtype):
         _scan(out, q0, body, dtype == np.float32)
         tol = 1e-14 if dtype == np.float64 else 2e-7
         assert out.dtype == dtype and np.abs(out - ref).max() < tol, (n, body)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(2, 300), scale=st.floats(1e-3, 30),
+       frame=st.sampled_from(["space", "body"]), f32=st.booleans())
+def test_integrate_then_step_rates_round_trip(seed, n, scale, frame, f32):
+    # integrate (hold="start": each step the exponential of its start rate) and the step rates
+    # of the result give the rates back, for any steps and rate sizes (turns up to ~π a step)
+    rng = np.random.default_rng(seed)
+    t = uneven_times(rng, n, 0.05)
+    w = rng.standard_normal((n, 3)) * scale
+    w *= np.minimum(1.0, 3.0 / (np.linalg.norm(w, axis=1, keepdims=True) * np.r_[np.diff(t), 1.0][:, None]))
+    dt = np.float32 if f32 else np.float64
+    q = qa.integrate_angular_velocity(w.astype(dt), t, frame=frame, hold="start")
+    assert q.dtype == dt
+    tol = 2e-3 if f32 else 1e-8
+    np.testing.assert_allclose(step_rates(q.astype(float), t, frame), w[:-1].astype(dt), atol=tol * (1 + scale), rtol=0)
+    assert np.abs(np.linalg.norm(q.astype(float), axis=1) - 1).max() < (1e-5 if f32 else 1e-12)

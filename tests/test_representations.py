@@ -140,3 +140,26 @@ def test_mrp_gibbs_dtype_out_broadcast(rng, fn, core):
         f(np.ones((2, 5)))
     with pytest.raises(ValueError):
         f(x, out=np.empty((3, 3)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(quat.filter(lambda q: np.linalg.norm(q) > 1e-3))
+def test_mrp_round_trips(q):
+    p = qa.as_mrp(q)
+    assert np.linalg.norm(p) <= 1 + 1e-15  # the short one of the two MRPs
+    assert qa.distance(qa.from_mrp(p), q) < 1e-7
+    back = qa.as_mrp(qa.from_mrp(p))
+    if np.linalg.norm(p) < 1 - 1e-12:
+        np.testing.assert_allclose(back, p, atol=2e-15)
+    else:  # a half turn: p and −p are the same rotation, and w = 0 to rounding picks one
+        assert qa.distance(qa.from_mrp(back), q) < 1e-7
+    np.testing.assert_allclose(p, R(q).as_mrp(), atol=2e-15)
+
+
+@settings(max_examples=200, deadline=None)
+@given(arrays(np.float64, 3, elements=st.floats(-1e3, 1e3, allow_nan=False, width=64)))
+def test_gibbs_round_trips(g):
+    q = qa.from_gibbs(g)
+    assert q[0] > 0
+    np.testing.assert_allclose(qa.as_gibbs(q), g, rtol=1e-12, atol=1e-12)
+    assert qa.distance(qa.from_gibbs(qa.as_gibbs(q)), q) < 1e-7

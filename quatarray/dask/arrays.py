@@ -250,6 +250,30 @@ for _name, _spec in ELEMENTWISE.items():
     globals()[_name] = _elementwise(_name, *_spec)
 del _name, _spec
 
+# from_euler: the core of `angles` is (len(seq),), one twin per length
+_FROM_EULER = {k: _elementwise("from_euler", (("angles", (k,)),), (Q,)) for k in (1, 2)}
+_FROM_EULER[3] = globals()["from_euler"]
+
+
+def from_euler(seq, angles, degrees=False):
+    """Dask version of :func:`quatarray.from_euler`: a lazy Dask array, block by block.
+
+    `angles` has shape ``(..., len(seq))`` (a 1-, 2- or 3-axis sequence; one angle
+    about one axis may be a scalar); a bad `seq` raises at once, as in memory.
+    Blocks are computed by the same kernel, so the result equals the in-memory one bitwise.
+    """
+    from ..euler import _parse_from_seq
+
+    k = _parse_from_seq(seq)[2]
+    if not hasattr(angles, "ndim"):
+        angles = np.asarray(angles)
+    if k == 1 and angles.ndim == 0:
+        angles = angles[None]
+    return _FROM_EULER[k](seq, angles, degrees=degrees)
+
+
+from_euler.__module__ = __package__
+
 # --------------------------------------------------------------------------
 # blocked scans along a leading axis: cumprod and unflip
 
