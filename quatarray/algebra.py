@@ -474,8 +474,8 @@ def mean(q, weights=None, axis=None):
     (3, 4)
     """
     a = check_core(as_float(q, "q"), "q", Q)
-    if a.ndim == 1 and axis is not None:
-        a = a[None]  # one quaternion has one leading axis of length 1 for `axis`, as in scipy
+    if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
+        a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
     lead = a.shape[:-1]
     red = _reduce_axes(axis, len(lead))
     keep = tuple(k for k in range(len(lead)) if k not in red)

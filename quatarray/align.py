@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, like, prange, rowloop
+from ._jit import element, exponent_scales, like, prange, rowloop
 from ._validate import as_float, elementwise, result_dtype, shape_error, where
 
 V = (3,)
@@ -60,6 +60,17 @@ def perpendicular(v):
 
 
 @element
+def vlength(v):
+    """|v| without overflow or underflow in the squares (scaled by the largest
+    |component|); 0, inf and nan as the plain formula."""
+    m = max(max(abs(v[0]), abs(v[1])), abs(v[2]))
+    if m > like(m, 0.0) and m < like(m, np.inf):
+        x, y, z = v[0] / m, v[1] / m, v[2] / m
+        return m * np.sqrt(x * x + y * y + z * z)
+    return E.vnorm(v)
+
+
+@element
 def shortest_arc(b, a):
     """The rotation of least angle taking the direction of `b` to that of `a`,
     as scipy's ``align_vectors`` builds it for one pair: the turn by
@@ -67,13 +78,14 @@ def shortest_arc(b, a):
     (cos(θ/2), sin(θ/2) c/|c|): a unit quaternion to rounding, accurate at
     any angle, a half turn included (exactly antiparallel vectors: a half
     turn about :func:`perpendicular` of `a`; equal directions: the
-    identity). A zero, inf or nan vector gives nan."""
-    na = E.vnorm(a)
-    nb = E.vnorm(b)
+    identity), at any length of `a` and `b` (:func:`vlength`). A zero, inf
+    or nan vector gives nan."""
+    na = vlength(a)
+    nb = vlength(b)
     a = (a[0] / na, a[1] / na, a[2] / na)
     b = (b[0] / nb, b[1] / nb, b[2] / nb)
     c = E.cross(b, a)
-    cn = E.vnorm(c)
+    cn = vlength(c)  # near a half turn |c| may be far below the square root of the smallest float
     d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
     half = like(cn, 0.5)
     zero = like(cn, 0.0)
@@ -102,7 +114,20 @@ def davenport(bm, m):
     sᵢ = lam − gᵢ: ζ = Πgᵢ and κ = s₀s₁ + s₁s₂ + s₂s₀ of scipy's sensitivity
     matrix, and gmin = s₁ + s₂ for its uniqueness test.
     """
-    sxx, syx, szx, sxy, syy, szy, sxz, syz, szz = bm  # S = Bᵀ: S_ij = Σ w b_i a_j
+    # B scaled to a largest entry of 1 (K's sums then neither overflow nor underflow)
+    c = 0.0
+    finite = True
+    for x in bm:
+        c = abs(x) if abs(x) > c else c
+        finite = finite and abs(x) < np.inf
+    if not finite:  # a nan or inf in B: no rotation (the iteration would stop at once)
+        nan = np.nan
+        return (nan, nan, nan, nan), nan, nan, nan, nan
+    if not c > 0.0:
+        c = 1.0
+    sxx, syx, szx = bm[0] / c, bm[1] / c, bm[2] / c  # S = Bᵀ: S_ij = Σ w b_i a_j
+    sxy, syy, szy = bm[3] / c, bm[4] / c, bm[5] / c
+    sxz, syz, szz = bm[6] / c, bm[7] / c, bm[8] / c
     k01, k02, k03 = syz - szy, szx - sxz, sxy - syx
     k12, k13, k23 = sxy + syx, szx + sxz, syz + szy
     k = (
@@ -111,20 +136,9 @@ def davenport(bm, m):
         k02, k12, -sxx + syy - szz, k23,
         k03, k13, k23, -sxx - syy + szz,
     )  # fmt: skip
-    # scaled to a largest entry of 1 (no overflow or underflow in the rotations)
-    c = 0.0
-    total = 0.0
-    for x in k:
-        c = abs(x) if abs(x) > c else c
-        total += abs(x)
-    if not total < np.inf:  # a nan or inf in B: no rotation (the iteration would stop at once)
-        nan = np.nan
-        return (nan, nan, nan, nan), nan, nan, nan, nan
-    if not c > 0.0:
-        c = 1.0
-    # m: K, then the eigenvectors V (columns), from the identity
+    # m: K (of the scaled B), then the eigenvectors V (columns), from the identity
     for i in range(16):
-        m[i] = k[i] / c
+        m[i] = k[i]
         m[16 + i] = 1.0 if i % 5 == 0 else 0.0
     for _ in range(30):
         off = 0.0
@@ -186,15 +200,63 @@ def davenport(bm, m):
 
 
 @element
-def load_pair(a, b, w, p, i):
-    """Pair i of problem p as float64: (a_i, b_i, w_i). (``np.float64``: numba's
-    ``float()`` of a float32 stays float32.)"""
+def load_pair(a, b, w, p, i, r):
+    """Pair i of problem p as float64, its vectors times `r` (see :func:`pair_scale`):
+    (r a_i, r b_i, w_i). (``np.float64``: numba's ``float()`` of a float32 stays float32.)"""
     f = np.float64
     return (
-        (f(a[p, i, 0]), f(a[p, i, 1]), f(a[p, i, 2])),
-        (f(b[p, i, 0]), f(b[p, i, 1]), f(b[p, i, 2])),
+        (r * f(a[p, i, 0]), r * f(a[p, i, 1]), r * f(a[p, i, 2])),
+        (r * f(b[p, i, 0]), r * f(b[p, i, 1]), r * f(b[p, i, 2])),
         f(w[p, i]),
     )
+
+
+# The range of a problem's Σ wᵢ(|aᵢ|² + |bᵢ|²) in which its sums of products (B, whose
+# entries it bounds) are formed on the vectors as they are: outside (or 0, inf, nan), they
+# are formed again on the problem scaled by a power of two (pair_scale), lest they have
+# overflowed or underflowed. The common case costs one pass.
+SAFE = (2.0**-600, 2.0**600)
+
+
+@element
+def pair_scale(a, b, p):
+    """A power of two r (exact) that brings the largest |component| m of problem p's
+    vectors into [2, 4): the sums of products of r·a and r·b (B, |a|² + |b|²) then
+    neither overflow nor underflow whatever the vectors' magnitude; B, the singular
+    values and the ssd of the scaled problem are r² times the problem's own. 1 when
+    m is 0, subnormal, inf or nan."""
+    m = 0.0
+    for i in range(a.shape[1]):
+        for j in range(3):
+            m = max(m, max(abs(np.float64(a[p, i, j])), abs(np.float64(b[p, i, j]))))
+    r, c = exponent_scales(m)
+    return r if (c > 0.0) & (r > 0.0) & (m < np.inf) else 1.0
+
+
+@element
+def accumulate(a, b, w, p, r):
+    """(B, Σ wᵢ(|aᵢ|² + |bᵢ|²), Σ wᵢ, the number of infinite weights, the first one's
+    pair) of problem p, its vectors times `r`; B = Σ wᵢ aᵢ bᵢᵀ row-major."""
+    bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    ssq = 0.0
+    wsum = 0.0
+    ninf = 0
+    kinf = 0
+    for i in range(a.shape[1]):
+        ai, bi, wi = load_pair(a, b, w, p, i, r)
+        if wi == np.inf:
+            if ninf == 0:
+                kinf = i
+            ninf += 1
+        wa = (wi * ai[0], wi * ai[1], wi * ai[2])
+        bm = (
+            bm[0] + wa[0] * bi[0], bm[1] + wa[0] * bi[1], bm[2] + wa[0] * bi[2],
+            bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
+            bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
+        )  # fmt: skip
+        ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2] + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
+        wsum += wi
+    return bm, ssq, wsum, ninf, kinf
 
 
 @element
@@ -202,7 +264,8 @@ def fixed_fit(a, b, w, p, k):
     """scipy's ``_align_vectors_fixed`` for problem p with primary pair k:
     the shortest arc between the primary vectors, then the turn φ about the
     primary direction that best aligns the other pairs. Returns (q, rssd)."""
-    ak, bk, wk = load_pair(a, b, w, p, k)
+    r = pair_scale(a, b, p)
+    ak, bk, wk = load_pair(a, b, w, p, k, r)
     q = shortest_arc(bk, ak)
     n = a.shape[1]
     if n > 1:
@@ -212,7 +275,7 @@ def fixed_fit(a, b, w, p, k):
         cos_sum = 0.0
         for i in range(n):
             if i != k:
-                ai, bi, wi = load_pair(a, b, w, p, i)
+                ai, bi, wi = load_pair(a, b, w, p, i, r)
                 ci = E.qrotate(q, bi)
                 ca = E.cross(ci, ai)
                 sin_sum += wi * (ca[0] * u[0] + ca[1] * u[1] + ca[2] * u[2])
@@ -225,13 +288,13 @@ def fixed_fit(a, b, w, p, k):
         q = E.qmul((np.cos(h), sh * u[0], sh * u[1], sh * u[2]), q)
     ssd = 0.0
     for i in range(n):
-        ai, bi, wi = load_pair(a, b, w, p, i)
+        ai, bi, wi = load_pair(a, b, w, p, i, r)
         if (n > 1 or wi == np.inf) and i == k:
             continue  # the primary pair is held exactly: it counts 0
         e = E.qrotate(q, bi)
         d0, d1, d2 = ai[0] - e[0], ai[1] - e[1], ai[2] - e[2]
         ssd += wi * (d0 * d0 + d1 * d1 + d2 * d2)
-    return q, np.sqrt(ssd)
+    return q, np.sqrt(ssd) / r
 
 
 # --------------------------------------------------------------------------
@@ -243,59 +306,44 @@ ALIGN_BLOCK = 256  # problems per block of _align (one scratch row each)
 
 @rowloop
 def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
-    # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); aux_out (P, 12): B (row-major),
-    # ζ, κ and mean(w) for the sensitivity matrix; scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
+    # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); aux_out (P, 11): for the
+    # sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), B (row-major) and κ of the problem scaled by r
+    # (pair_scale) and F = r² mean(w)/ζ of it, so that the matrix is F (κ I + B Bᵀ); scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
     n = a.shape[1]
     m = a.shape[0]
     for blk in prange(scratch.shape[0]):
         for p in range(blk * ALIGN_BLOCK, min(m, (blk + 1) * ALIGN_BLOCK)):
-            bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            ssq = 0.0
-            wsum = 0.0
-            ninf = 0
-            kinf = 0
-            for i in range(n):
-                ai, bi, wi = load_pair(a, b, w, p, i)
-                if wi == np.inf:
-                    if ninf == 0:
-                        kinf = i
-                    ninf += 1
-                wa = (wi * ai[0], wi * ai[1], wi * ai[2])
-                bm = (
-                    bm[0] + wa[0] * bi[0], bm[1] + wa[0] * bi[1], bm[2] + wa[0] * bi[2],
-                    bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
-                    bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
-                )  # fmt: skip
-                ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2]
-                             + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
-                wsum += wi
+            bm, ssq, wsum, ninf, kinf = accumulate(a, b, w, p, 1.0)
+            r = 1.0
+            if not (ssq > SAFE[0] and ssq < SAFE[1]):  # rare: redone on the problem scaled by r
+                r = pair_scale(a, b, p)
+                bm, ssq, wsum, ninf, kinf = accumulate(a, b, w, p, r)
             nan = np.nan
             flag = 0
-            aux = (nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
+            aux = (nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
             if ninf > 1:
                 flag = _SEVERAL_INF
                 q = (nan, nan, nan, nan)
                 rssd = nan
             elif ninf == 1 or n == 1:  # solved by _align_fixed (compiled only when some problem needs it)
-                ak, bk, wk = load_pair(a, b, w, p, kinf)
-                a2 = ak[0] * ak[0] + ak[1] * ak[1] + ak[2] * ak[2]  # zero exactly when |a_k| is
-                if a2 == 0.0 or bk[0] * bk[0] + bk[1] * bk[1] + bk[2] * bk[2] == 0.0:
+                ak, bk, wk = load_pair(a, b, w, p, kinf, 1.0)
+                if (ak[0] == 0.0 and ak[1] == 0.0 and ak[2] == 0.0) or (bk[0] == 0.0 and bk[1] == 0.0 and bk[2] == 0.0):
                     flag = _ZERO_PRIMARY
                 flag |= _FIXED
                 q = (nan, nan, nan, nan)
                 rssd = nan
             else:
                 q, lam, zeta, kappa, gmin = davenport(bm, scratch[blk])
-                rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0))
+                rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0)) / r
                 if gmin < NOT_UNIQUE * (lam - gmin):
                     flag = _NOT_UNIQUE
                 # what scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) needs (see davenport;
                 # formed by the front end only when asked for)
-                aux = bm + (zeta, kappa, wsum / n)
+                aux = bm + (kappa, wsum / n / zeta * r * r)
             flags[p] = flag
             E.store4(q_out, p, q)
             rssd_out[p] = rssd
-            for j in range(12):
+            for j in range(11):
                 aux_out[p, j] = aux[j]
 
 
@@ -436,8 +484,7 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
         if n == 1:
             # single pairs: every problem takes the primary-pair path, and _align (the
             # Davenport kernel) would only set the flags: set here, it is not compiled
-            zero = np.square(a2[:, 0], dtype=np.float64).sum(axis=1) == 0.0  # in float64, as _align
-            zero |= np.square(b2[:, 0], dtype=np.float64).sum(axis=1) == 0.0
+            zero = (a2[:, 0] == 0).all(axis=1) | (b2[:, 0] == 0).all(axis=1)  # as _align
             flags = np.where(zero, _ZERO_PRIMARY | _FIXED, _FIXED).astype(np.uint8)
             for x in (q2, r2, s2):
                 x.fill(np.nan)
@@ -452,7 +499,7 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
         status.append(flags)
 
     inputs = [(av, "a", core), (bv, "b", core), (w, "weights", (n,))]
-    q, rssd, aux = elementwise(run, inputs, [Q, (), (12,)], result=dtype)
+    q, rssd, aux = elementwise(run, inputs, [Q, (), (11,)], result=dtype)
     flags = status[0]
     lead = q.shape[:-1]
     for bit, text in (
@@ -475,10 +522,10 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
         )
     if not return_sensitivity:
         return q, rssd
-    # scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ)
+    # scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), as F (κ I + B Bᵀ) of the scaled problem (see _align)
     bm = aux[..., :9].reshape(aux.shape[:-1] + (3, 3))
-    f = (aux[..., 11] / aux[..., 9])[..., None, None]
-    sens = f * (aux[..., 10, None, None] * np.eye(3, dtype=aux.dtype) + bm @ np.swapaxes(bm, -1, -2))
+    kappa, f = aux[..., 9, None, None], aux[..., 10, None, None]
+    sens = f * (kappa * np.eye(3, dtype=aux.dtype) + bm @ np.swapaxes(bm, -1, -2))
     return q, rssd, sens
 
 

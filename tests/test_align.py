@@ -262,7 +262,34 @@ def test_float32_near_antiparallel_is_unit_and_accurate(rng):
     # the example the float32 arithmetic got 5.4e-5 rad wrong (norm 1.00012)
     u1, v1 = np.float32([0.24333124, -0.7858214, 0.5492702]), np.float32([-0.2426596, 0.7865856, -0.5490437])
     assert qa.distance(qa.rotation_between(u1, v1).astype(float), qa.rotation_between(u1 * 1.0, v1 * 1.0)) < 1e-6
-    # near a half turn and at exactly one, against scipy in float64
+    # near a half turn and at exactly one, against scipy in float64 (within what rounding in
+    # the cross product of the inputs makes of the axis: ε/(π − θ))
     for i in range(300):
-        assert qa.distance(qa.rotation_between(u[i], v[i]), scipy_align(v[i], u[i])[0]) < 1e-11
+        q = qa.rotation_between(u[i], v[i])
+        assert qa.distance(q, scipy_align(v[i], u[i])[0]) < 1e-13 + 1e-15 / (np.pi - qa.angle(q))
     np.testing.assert_array_equal(qa.rotation_between([0.0, 0, 1], [0, 0, -1]), [0, 0, 1, 0])  # w exactly 0
+
+
+def test_any_magnitude(rng):
+    # vectors scaled by powers of ten from 1e-300 to 1e300: the same rotation, rssd and
+    # sensitivity scaled (B, |a|², the singular values are formed on the problem scaled
+    # by a power of two; scipy's products overflow or underflow beyond about 1e±150)
+    b0 = rng.standard_normal((5, 3))
+    a0 = qa.rotate(qa.from_rotvec([0.3, 0.2, 0.1]), b0) + 0.01 * rng.standard_normal((5, 3))
+    q0, r0, s0 = qa.align_vectors(a0, b0, return_sensitivity=True)
+    w = np.r_[np.inf, np.ones(5)]
+    qi, ri = qa.align_vectors(np.r_[a0[:1], a0], np.r_[b0[:1], b0], w)
+    for sc in [1e-300, 1e-200, 1e-100, 1e100, 1e200, 1e300]:
+        q, r, sens = qa.align_vectors(a0 * sc, b0 * sc, return_sensitivity=True)
+        assert qa.distance(q, q0) < 1e-15 and abs(r / sc / r0 - 1) < 1e-10
+        if 1e-150 < sc < 1e150:  # beyond, the sensitivity itself (∝ 1/sc²) is out of range
+            np.testing.assert_allclose(sens * sc * sc, s0, rtol=1e-12)
+        q, r = qa.align_vectors(np.r_[a0[:1], a0] * sc, np.r_[b0[:1], b0] * sc, w)
+        assert qa.distance(q, qi) < 1e-15 and abs(r / sc / ri - 1) < 1e-12
+        q = qa.rotation_between(b0 * sc, a0 * sc)
+        assert np.all(qa.distance(q, qa.rotation_between(b0, a0)) < 1e-15)
+    # a half turn's axis far below the square root of the smallest float: still unit
+    for t in [1e-150, 1e-160, 1e-300]:
+        q = qa.rotation_between([-1.0, 0, 0], [1, t, 0])
+        assert abs(np.linalg.norm(q) - 1) < 3e-16 and abs(q[3] + 1) < 3e-16 and 0 < q[0] <= t
+    np.testing.assert_allclose(qa.rotation_between([1e200, 0, 0], [0, 1e200, 0]), [2**-0.5, 0, 0, 2**-0.5])
