@@ -200,50 +200,53 @@ def davenport(bm, m):
 
 
 @element
-def load_pair(a, b, w, p, i, r):
-    """Pair i of problem p as float64, its vectors times `r` (see :func:`pair_scale`):
-    (r a_i, r b_i, w_i). (``np.float64``: numba's ``float()`` of a float32 stays float32.)"""
+def load_pair(a, b, w, p, i, ra, rb):
+    """Pair i of problem p as float64, its vectors times `ra` and `rb` (see
+    :func:`pair_scale`): (ra a_i, rb b_i, w_i). (``np.float64``: numba's ``float()``
+    of a float32 stays float32.)"""
     f = np.float64
     return (
-        (r * f(a[p, i, 0]), r * f(a[p, i, 1]), r * f(a[p, i, 2])),
-        (r * f(b[p, i, 0]), r * f(b[p, i, 1]), r * f(b[p, i, 2])),
+        (ra * f(a[p, i, 0]), ra * f(a[p, i, 1]), ra * f(a[p, i, 2])),
+        (rb * f(b[p, i, 0]), rb * f(b[p, i, 1]), rb * f(b[p, i, 2])),
         f(w[p, i]),
     )
 
 
-# The range of a problem's Σ wᵢ(|aᵢ|² + |bᵢ|²) in which its sums of products (B, whose
-# entries it bounds) are formed on the vectors as they are: outside (or 0, inf, nan), they
-# are formed again on the problem scaled by a power of two (pair_scale), lest they have
-# overflowed or underflowed. The common case costs one pass.
+# The range of a problem's Σ wᵢ|aᵢ|² and Σ wᵢ|bᵢ|² in which its sums of products (B,
+# whose entries they bound) are formed on the vectors as they are: outside (or 0, inf,
+# nan), they are formed again on a and b each scaled by a power of two (pair_scale),
+# lest they have overflowed or underflowed. The common case costs one pass.
 SAFE = (2.0**-600, 2.0**600)
 
 
 @element
-def pair_scale(a, b, p):
+def pair_scale(x, p, skip):
     """A power of two r (exact) that brings the largest |component| m of problem p's
-    vectors into [2, 4): the sums of products of r·a and r·b (B, |a|² + |b|²) then
-    neither overflow nor underflow whatever the vectors' magnitude; B, the singular
-    values and the ssd of the scaled problem are r² times the problem's own. 1 when
-    m is 0, subnormal, inf or nan."""
+    vectors in `x` (a or b) into [2, 4): sums of products of r_a·a and r_b·b (B,
+    |a|², |b|²) then neither overflow nor underflow whatever the vectors' magnitudes;
+    B and the singular values of the scaled problem are r_a r_b times its own. 1 when
+    m is 0, subnormal, inf or nan. Pair `skip` does not count (−1: none)."""
     m = 0.0
-    for i in range(a.shape[1]):
-        for j in range(3):
-            m = max(m, max(abs(np.float64(a[p, i, j])), abs(np.float64(b[p, i, j]))))
+    for i in range(x.shape[1]):
+        if i != skip:
+            for j in range(3):
+                m = max(m, abs(np.float64(x[p, i, j])))
     r, c = exponent_scales(m)
     return r if (c > 0.0) & (r > 0.0) & (m < np.inf) else 1.0
 
 
 @element
-def accumulate(a, b, w, p, r):
-    """(B, Σ wᵢ(|aᵢ|² + |bᵢ|²), Σ wᵢ, the number of infinite weights, the first one's
-    pair) of problem p, its vectors times `r`; B = Σ wᵢ aᵢ bᵢᵀ row-major."""
+def accumulate(a, b, w, p, ra, rb):
+    """(B, Σ wᵢ|aᵢ|², Σ wᵢ|bᵢ|², Σ wᵢ, the number of infinite weights, the first one's
+    pair) of problem p, its vectors a times `ra` and b times `rb`; B = Σ wᵢ aᵢ bᵢᵀ row-major."""
     bm = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    ssq = 0.0
+    ssa = 0.0
+    ssb = 0.0
     wsum = 0.0
     ninf = 0
     kinf = 0
     for i in range(a.shape[1]):
-        ai, bi, wi = load_pair(a, b, w, p, i, r)
+        ai, bi, wi = load_pair(a, b, w, p, i, ra, rb)
         if wi == np.inf:
             if ninf == 0:
                 kinf = i
@@ -254,28 +257,36 @@ def accumulate(a, b, w, p, r):
             bm[3] + wa[1] * bi[0], bm[4] + wa[1] * bi[1], bm[5] + wa[1] * bi[2],
             bm[6] + wa[2] * bi[0], bm[7] + wa[2] * bi[1], bm[8] + wa[2] * bi[2],
         )  # fmt: skip
-        ssq += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2] + bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
+        ssa += wi * (ai[0] * ai[0] + ai[1] * ai[1] + ai[2] * ai[2])
+        ssb += wi * (bi[0] * bi[0] + bi[1] * bi[1] + bi[2] * bi[2])
         wsum += wi
-    return bm, ssq, wsum, ninf, kinf
+    return bm, ssa, ssb, wsum, ninf, kinf
 
 
 @element
 def fixed_fit(a, b, w, p, k):
     """scipy's ``_align_vectors_fixed`` for problem p with primary pair k:
     the shortest arc between the primary vectors, then the turn φ about the
-    primary direction that best aligns the other pairs. Returns (q, rssd)."""
-    r = pair_scale(a, b, p)
-    ak, bk, wk = load_pair(a, b, w, p, k, r)
-    q = shortest_arc(bk, ak)
+    primary direction that best aligns the other pairs. Returns (q, rssd).
+
+    The primary pair enters only through directions (:func:`shortest_arc`,
+    :func:`vlength`); the other pairs are read scaled by powers of two of their
+    own (:func:`pair_scale`), which leaves φ as it is, so no magnitude of either
+    underflows the other's turn."""
     n = a.shape[1]
+    skip = k if n > 1 else -1
+    ra = pair_scale(a, p, skip)
+    rb = pair_scale(b, p, skip)
+    ak, bk, wk = load_pair(a, b, w, p, k, 1.0, 1.0)
+    q = shortest_arc(bk, ak)
     if n > 1:
-        na = E.vnorm(ak)
+        na = vlength(ak)
         u = (ak[0] / na, ak[1] / na, ak[2] / na)
         sin_sum = 0.0
         cos_sum = 0.0
         for i in range(n):
             if i != k:
-                ai, bi, wi = load_pair(a, b, w, p, i, r)
+                ai, bi, wi = load_pair(a, b, w, p, i, ra, rb)
                 ci = E.qrotate(q, bi)
                 ca = E.cross(ci, ai)
                 sin_sum += wi * (ca[0] * u[0] + ca[1] * u[1] + ca[2] * u[2])
@@ -286,15 +297,18 @@ def fixed_fit(a, b, w, p, k):
         h = 0.5 * np.arctan2(sin_sum, cos_sum)
         sh = np.sin(h)
         q = E.qmul((np.cos(h), sh * u[0], sh * u[1], sh * u[2]), q)
+    # Σ w|a − R b|² of the unscaled pairs as t²·Σ w|x a' − y R b'|² (t = max(1/ra, 1/rb))
+    t = max(1.0 / ra, 1.0 / rb)
+    x, y = 1.0 / ra / t, 1.0 / rb / t
     ssd = 0.0
     for i in range(n):
-        ai, bi, wi = load_pair(a, b, w, p, i, r)
+        ai, bi, wi = load_pair(a, b, w, p, i, ra, rb)
         if (n > 1 or wi == np.inf) and i == k:
             continue  # the primary pair is held exactly: it counts 0
         e = E.qrotate(q, bi)
-        d0, d1, d2 = ai[0] - e[0], ai[1] - e[1], ai[2] - e[2]
+        d0, d1, d2 = x * ai[0] - y * e[0], x * ai[1] - y * e[1], x * ai[2] - y * e[2]
         ssd += wi * (d0 * d0 + d1 * d1 + d2 * d2)
-    return q, np.sqrt(ssd) / r
+    return q, t * np.sqrt(ssd)
 
 
 # --------------------------------------------------------------------------
@@ -307,17 +321,18 @@ ALIGN_BLOCK = 256  # problems per block of _align (one scratch row each)
 @rowloop
 def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
     # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); aux_out (P, 11): for the
-    # sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), B (row-major) and κ of the problem scaled by r
-    # (pair_scale) and F = r² mean(w)/ζ of it, so that the matrix is F (κ I + B Bᵀ); scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
+    # sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), B (row-major) and κ of the problem scaled by
+    # ra, rb (pair_scale) and F = ra rb mean(w)/ζ of it, so that the matrix is F (κ I + B Bᵀ); scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
     n = a.shape[1]
     m = a.shape[0]
     for blk in prange(scratch.shape[0]):
         for p in range(blk * ALIGN_BLOCK, min(m, (blk + 1) * ALIGN_BLOCK)):
-            bm, ssq, wsum, ninf, kinf = accumulate(a, b, w, p, 1.0)
-            r = 1.0
-            if not (ssq > SAFE[0] and ssq < SAFE[1]):  # rare: redone on the problem scaled by r
-                r = pair_scale(a, b, p)
-                bm, ssq, wsum, ninf, kinf = accumulate(a, b, w, p, r)
+            bm, ssa, ssb, wsum, ninf, kinf = accumulate(a, b, w, p, 1.0, 1.0)
+            ra = rb = 1.0
+            if not (ssa > SAFE[0] and ssa < SAFE[1] and ssb > SAFE[0] and ssb < SAFE[1]):
+                ra = pair_scale(a, p, -1)  # rare: redone on the scaled vectors
+                rb = pair_scale(b, p, -1)
+                bm, ssa, ssb, wsum, ninf, kinf = accumulate(a, b, w, p, ra, rb)
             nan = np.nan
             flag = 0
             aux = (nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
@@ -326,7 +341,7 @@ def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
                 q = (nan, nan, nan, nan)
                 rssd = nan
             elif ninf == 1 or n == 1:  # solved by _align_fixed (compiled only when some problem needs it)
-                ak, bk, wk = load_pair(a, b, w, p, kinf, 1.0)
+                ak, bk, wk = load_pair(a, b, w, p, kinf, 1.0, 1.0)
                 if (ak[0] == 0.0 and ak[1] == 0.0 and ak[2] == 0.0) or (bk[0] == 0.0 and bk[1] == 0.0 and bk[2] == 0.0):
                     flag = _ZERO_PRIMARY
                 flag |= _FIXED
@@ -334,12 +349,15 @@ def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
                 rssd = nan
             else:
                 q, lam, zeta, kappa, gmin = davenport(bm, scratch[blk])
-                rssd = np.sqrt(max(ssq - 2.0 * lam, 0.0)) / r
+                # sqrt(Σw|a|² + Σw|b|² − 2λ) of the unscaled problem, as t·sqrt(…) (t = max(1/ra, 1/rb))
+                t = max(1.0 / ra, 1.0 / rb)
+                x, y = 1.0 / ra / t, 1.0 / rb / t
+                rssd = t * np.sqrt(max(ssa * x * x + ssb * y * y - 2.0 * lam * x * y, 0.0))
                 if gmin < NOT_UNIQUE * (lam - gmin):
                     flag = _NOT_UNIQUE
                 # what scipy's sensitivity matrix mean(w)/ζ (κ I + B Bᵀ) needs (see davenport;
                 # formed by the front end only when asked for)
-                aux = bm + (kappa, wsum / n / zeta * r * r)
+                aux = bm + (kappa, wsum / n / zeta * (ra * rb))
             flags[p] = flag
             E.store4(q_out, p, q)
             rssd_out[p] = rssd
@@ -405,7 +423,9 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
 
     More than one infinite weight in a problem, a zero vector in the primary
     (infinite-weight or only) pair, or a negative weight raise ``ValueError``
-    naming the problem, as scipy does. When the optimum is not unique
+    naming the problem, as scipy does (scipy also raises for a primary vector
+    whose squared norm underflows, below about 1e-162; here such vectors are
+    aligned, as are vectors of any other magnitude). When the optimum is not unique
     (collinear vectors in `a` or in `b`: s₁ + s₂ < 2·10⁻¹⁵ s₀ for B's
     singular values, see :data:`NOT_UNIQUE`) one ``UserWarning`` per call
     says how many problems are affected, as scipy warns; the rotation

@@ -293,3 +293,30 @@ def test_any_magnitude(rng):
         q = qa.rotation_between([-1.0, 0, 0], [1, t, 0])
         assert abs(np.linalg.norm(q) - 1) < 3e-16 and abs(q[3] + 1) < 3e-16 and 0 < q[0] <= t
     np.testing.assert_allclose(qa.rotation_between([1e200, 0, 0], [0, 1e200, 0]), [2**-0.5, 0, 0, 2**-0.5])
+
+
+def test_magnitudes_far_apart_within_a_problem():
+    # a and b of different magnitudes (each set scaled by its own power of two), a tiny
+    # primary, tiny other pairs under a huge primary: the rotations scipy finds where its
+    # products do not underflow, and the rssd of the unscaled problem
+    h = 2**-0.5
+    q, r = qa.align_vectors([[1e200, 0, 0], [0, 1e200, 0]], [[0, 1e-200, 0], [-1e-200, 0, 0]])
+    np.testing.assert_allclose(np.abs(q), [h, 0, 0, h], atol=1e-15)
+    np.testing.assert_allclose(r, 2**0.5 * 1e200, rtol=1e-12)
+    q, r = qa.align_vectors([[1e-200, 0, 0], [0, 1, 0]], [[0, 1e-200, 0], [-1, 0, 0]], [np.inf, 1])
+    np.testing.assert_allclose(q, [h, 0, 0, -h], atol=1e-15)
+    q, r = qa.align_vectors([[1e-150, 0, 0], [0, 1e150, 0]], [[0, 1e-150, 0], [-1e150, 0, 0]], [np.inf, 1])
+    np.testing.assert_allclose(q, [h, 0, 0, -h], atol=1e-15)
+    q, r = qa.align_vectors([[1e150, 0, 0], [0, 1e-150, 0]], [[1e150, 0, 0], [0, 0, 1e-150]], [np.inf, 1])
+    np.testing.assert_allclose(q, [h, -h, 0, 0], atol=1e-15)
+    assert r < 1e-160
+    q, r = qa.align_vectors([1e-200, 0, 0], [0, 1e200, 0])  # one pair: the shortest arc
+    np.testing.assert_allclose(q, [h, 0, 0, -h], atol=1e-15)
+    np.testing.assert_allclose(r, 1e200, rtol=1e-12)
+    rng = np.random.default_rng(3)
+    b0 = rng.standard_normal((5, 3))
+    a0 = qa.rotate(qa.from_rotvec([0.3, 0.2, 0.1]), b0) + 0.01 * rng.standard_normal((5, 3))
+    q0, r0 = qa.align_vectors(a0, b0)
+    for sa, sb in [(1e160, 1e-160), (1e200, 1e-200), (1e-250, 1e250)]:
+        q, r = qa.align_vectors(a0 * sa, b0 * sb)
+        assert qa.distance(q, q0) < 1e-15 and np.isfinite(r)
