@@ -236,6 +236,15 @@ def pair_scale(x, p, skip):
 
 
 @element
+def unscale(ra, rb):
+    """(t, x, y) with 1/ra = t·x and 1/rb = t·y, t = max(1/ra, 1/rb) (powers of two):
+    a sum of squares of the unscaled problem, Σ|a − b|² = t²·Σ|x·ra·a − y·rb·b|², is
+    then formed without overflow and its square root taken as t·sqrt(…)."""
+    t = max(1.0 / ra, 1.0 / rb)
+    return t, 1.0 / ra / t, 1.0 / rb / t
+
+
+@element
 def accumulate(a, b, w, p, ra, rb):
     """(B, Σ wᵢ|aᵢ|², Σ wᵢ|bᵢ|², Σ wᵢ, the number of infinite weights, the first one's
     pair) of problem p, its vectors a times `ra` and b times `rb`; B = Σ wᵢ aᵢ bᵢᵀ row-major."""
@@ -297,9 +306,7 @@ def fixed_fit(a, b, w, p, k):
         h = 0.5 * np.arctan2(sin_sum, cos_sum)
         sh = np.sin(h)
         q = E.qmul((np.cos(h), sh * u[0], sh * u[1], sh * u[2]), q)
-    # Σ w|a − R b|² of the unscaled pairs as t²·Σ w|x a' − y R b'|² (t = max(1/ra, 1/rb))
-    t = max(1.0 / ra, 1.0 / rb)
-    x, y = 1.0 / ra / t, 1.0 / rb / t
+    t, x, y = unscale(ra, rb)  # Σ w|a − R b|² of the unscaled pairs: t²·Σ w|x a' − y R b'|²
     ssd = 0.0
     for i in range(n):
         ai, bi, wi = load_pair(a, b, w, p, i, ra, rb)
@@ -321,8 +328,9 @@ ALIGN_BLOCK = 256  # problems per block of _align (one scratch row each)
 @rowloop
 def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
     # a, b: (P, n, 3); w: (P, n); q_out (P, 4); rssd_out (P,); aux_out (P, 11): for the
-    # sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), B (row-major) and κ of the problem scaled by
-    # ra, rb (pair_scale) and F = ra rb mean(w)/ζ of it, so that the matrix is F (κ I + B Bᵀ); scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
+    # sensitivity matrix mean(w)/ζ (κ I + B Bᵀ), B (row-major) and κ of the problem scaled
+    # by ra, rb (pair_scale) and F = ra rb mean(w)/ζ of it, so that the matrix is
+    # F (κ I + B Bᵀ); scratch (ceil(P / ALIGN_BLOCK), 32) for davenport
     n = a.shape[1]
     m = a.shape[0]
     for blk in prange(scratch.shape[0]):
@@ -349,9 +357,7 @@ def _align(a, b, w, q_out, rssd_out, aux_out, flags, scratch):
                 rssd = nan
             else:
                 q, lam, zeta, kappa, gmin = davenport(bm, scratch[blk])
-                # sqrt(Σw|a|² + Σw|b|² − 2λ) of the unscaled problem, as t·sqrt(…) (t = max(1/ra, 1/rb))
-                t = max(1.0 / ra, 1.0 / rb)
-                x, y = 1.0 / ra / t, 1.0 / rb / t
+                t, x, y = unscale(ra, rb)  # sqrt(Σw|a|² + Σw|b|² − 2λ) of the unscaled problem
                 rssd = t * np.sqrt(max(ssa * x * x + ssb * y * y - 2.0 * lam * x * y, 0.0))
                 if gmin < NOT_UNIQUE * (lam - gmin):
                     flag = _NOT_UNIQUE
