@@ -115,3 +115,27 @@ def test_demo_from_an_empty_cache(tmp_path):
     wall = time.perf_counter() - t0
     print(f"\nquatarray demo from an empty cache: {wall:.1f} s wall")
     assert wall <= MARGIN * 20.0
+
+
+# A yardstick of the machine's speed at compiling, measured in the same run: the
+# issue quotes quaternionic (numba-based too) at about 10 s to compile everything
+# from an empty cache, on the machine where the targets above were set. On a
+# shared host that compiles slower, every first call above is slower by about the
+# same factor; this figure says by how much.
+_QUATERNIONIC = """
+import json, time
+c = time.process_time()
+import numpy as np, quaternionic
+a = quaternionic.array(np.random.default_rng(0).normal(size=(10, 4))).normalized
+b = a * a
+quaternionic.array.from_rotation_matrix(b.to_rotation_matrix)
+np.log(b), np.exp(b)
+print(json.dumps(time.process_time() - c))
+"""
+
+
+def test_yardstick_quaternionic_from_an_empty_cache():
+    pytest.importorskip("quaternionic")
+    cpu = json.loads(_cold("-c", _QUATERNIONIC).stdout.splitlines()[-1])
+    print(f"\nyardstick: quaternionic's import and first calls from an empty cache {cpu:.1f} s CPU "
+          f"(about 10 s where issue 13's targets were set: this machine compiles {cpu / 10.0:.1f}x as slowly)")
