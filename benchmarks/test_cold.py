@@ -121,7 +121,8 @@ def test_demo_from_an_empty_cache(tmp_path):
 # issue quotes quaternionic (numba-based too) at about 10 s to compile everything
 # from an empty cache, on the machine where the targets above were set. On a
 # shared host that compiles slower, every first call above is slower by about the
-# same factor; this figure says by how much.
+# same factor; this figure says by how much. It is a measurement, not a check.
+QUATERNIONIC_REFERENCE = 10.0  # s, the issue's figure
 _QUATERNIONIC = """
 import json, time
 c = time.process_time()
@@ -138,4 +139,5 @@ def test_yardstick_quaternionic_from_an_empty_cache():
     pytest.importorskip("quaternionic")
     cpu = json.loads(_cold("-c", _QUATERNIONIC).stdout.splitlines()[-1])
     print(f"\nyardstick: quaternionic's import and first calls from an empty cache {cpu:.1f} s CPU "
-          f"(about 10 s where issue 13's targets were set: this machine compiles {cpu / 10.0:.1f}x as slowly)")
+          f"(about {QUATERNIONIC_REFERENCE:.0f} s where issue 13's targets were set: "
+          f"this machine compiles {cpu / QUATERNIONIC_REFERENCE:.1f}x as slowly)")
