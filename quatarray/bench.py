@@ -18,7 +18,10 @@ fraction uses that row's triad rate, so a change of load between rows (a
 shared machine) does not move it. An operation returning a new array also
 pays for the fresh pages of its result (the system zeroes each one on first
 touch: an ``np.empty(...).fill()`` of the same size shows that cost), which
-the triad, writing into an existing array, does not.
+the triad, writing into an existing array, does not. Such rows are also timed
+against the plainest function making a new array of the same shape
+(:func:`fresh_fill`): the ``notes`` give the row's rate as a fraction of
+that one, the ceiling of a function returning a new array on this machine.
 
 Use :func:`run` (the command line calls it) or the pieces: :func:`ceiling`,
 :func:`triads`, :func:`cases` and :func:`measure`.
@@ -131,6 +134,32 @@ def ceiling(n, budget=1.0):
     }
 
 
+_FILLS = {}
+
+
+def fresh_fill(p, width):
+    """A new ``(len(p), width)`` float64 array, allocated as quatarray's functions allocate
+    their results (``np.empty``) and filled by a numba ``prange`` loop that reads one float
+    of each quaternion and writes its row. The ceiling of a function returning a new array
+    of that size on this machine: the system zeroes each fresh page on its first touch, a
+    cost the triad, writing into an existing array, does not pay."""
+    fill = _FILLS.get(width)
+    if fill is None:
+        import numba
+
+        @numba.njit(parallel=True, cache=False)
+        def fill(out, p):
+            for i in numba.prange(p.shape[0]):
+                x = p[i, 0]
+                for j in range(width):  # a constant of this compiled copy: the stores vectorise
+                    out[width * i + j] = x
+
+        _FILLS[width] = fill
+    out = np.empty((p.shape[0], width))
+    fill(out.reshape(-1), p)
+    return out
+
+
 # --------------------------------------------------------------------------
 # the operations
 
@@ -158,6 +187,7 @@ class Case:
     def __init__(self, op, items, nbytes=None, note=""):
         self.op, self.items, self.nbytes, self.note = op, items, nbytes, note
         self.fns = {}
+        self.fresh = None  # it returns a new array: the fresh_fill of its size
         self.missing = []  # quatarray functions not available yet
 
     def add(self, lib, fn):
@@ -215,6 +245,7 @@ def cases(n, seed=0):
         c.add("quaternionic", lambda: QP * QQ)
 
     c = case("multiply (new array)", nbytes=96, qa_name="multiply", qa_fn=lambda f: lambda: f(p, q))
+    c.fresh = lambda: fresh_fill(p, 4)
     if npq is not None:
         c.add("numpy-quaternion", lambda: P * Q)
 
@@ -316,6 +347,7 @@ def cases(n, seed=0):
     c = case("as_matrix", nbytes=104, qa_name="as_matrix", qa_fn=lambda f: lambda: f(p),
              note="a new array: its fresh pages cost the system's zeroing (see the out= row)")
     c.add("scipy", lambda: rp.as_matrix())
+    c.fresh = lambda: fresh_fill(p, 9)
     if npq is not None:
         c.add("numpy-quaternion", lambda: npq.as_rotation_matrix(P))
     if qn is not None:
@@ -372,6 +404,7 @@ def cases(n, seed=0):
     mrp = rp.as_mrp()
     c = case("as_mrp", nbytes=56, qa_name="as_mrp", qa_fn=lambda f: lambda: f(p))
     c.add("scipy", lambda: rp.as_mrp())
+    c.fresh = lambda: fresh_fill(p, 3)
 
     c = case("from_mrp", nbytes=56, qa_name="from_mrp", qa_fn=lambda f: lambda: f(mrp))
     c.add("scipy", lambda: Rotation.from_mrp(mrp))
@@ -471,8 +504,11 @@ def results(n, budget=1.5, progress=None):
         if c.fns:
             # The triads run in the same interleaved rounds, so %stream compares
             # rates measured under the same load.
-            best = measure({**c.fns, **(triad_fns if c.nbytes else {})}, budget)
+            fresh = {"fresh fill": c.fresh} if c.fresh else {}
+            best = measure({**c.fns, **(triad_fns if c.nbytes else {}), **fresh}, budget)
             row["rates_Mquat_s"] = {lib: c.items / best[lib] / 1e6 for lib in LIBS if lib in best}
+            if fresh and "quatarray" in best:
+                row["fresh_fraction"] = best["fresh fill"] / best["quatarray"]
         rq = row["rates_Mquat_s"].get("quatarray")
         if rq is not None:
             for lib, r in row["rates_Mquat_s"].items():
@@ -531,6 +567,8 @@ def table(n, ceil, rows, over=None):
     lines += [fmt(c) for c in body]
     notes = [f"  {r['op']}: {r['note']}" for r in rows if r.get("note") and "status" not in r]
     notes += [f"  {r['op']}: {r['ratios']['float64']:.2f}× the float64 rate" for r in rows if "float64" in r["ratios"]]
+    notes += [f"  {r['op']}: {100 * r['fresh_fraction']:.0f}% of the fresh-array ceiling (np.empty and a "
+              "prange fill of the result's shape, timed in the same rounds)" for r in rows if "fresh_fraction" in r]
     if notes:
         lines.append("notes:")
         lines += notes

@@ -28,3 +28,25 @@ def data_dir():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261122)
+
+
+# The README's test command runs the suite on every core (pytest-xdist's ``-n auto``).
+# The workers share numba's on-disk cache, whose index update is not atomic across
+# processes: each worker's cache writes hold the lock the warm-up's workers use, on
+# a file named after the run.
+if os.environ.get("PYTEST_XDIST_TESTRUNUID"):
+    import tempfile
+
+    from quatarray import _warmup
+
+    if _warmup._CAN_LOCK:
+        _warmup._locked_cache_writes(
+            os.path.join(tempfile.gettempdir(), f"quatarray-tests-{os.environ['PYTEST_XDIST_TESTRUNUID']}.lock"))
+
+
+@pytest.hookimpl(trylast=True)  # after -k and -m have deselected
+def pytest_collection_modifyitems(session, config, items):
+    """The longest test (the interpreted pass, two minutes on one core) first, so that
+    one worker runs it while the others take the rest."""
+    first = [item for item in items if item.nodeid.endswith("test_kernels_as_plain_python")]
+    items[:] = first + [item for item in items if item not in first]

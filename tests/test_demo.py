@@ -155,6 +155,9 @@ def test_bench_run_small(tmp_path):
     assert "float64" in rows["multiply float32 (out=)"]["ratios"]
     out = text.getvalue()
     assert "memory-stream ceiling" in out and "multiply (out=)" in out and "as_matrix" in out
+    # a new array's row is timed against the plainest kernel making a new array of its size
+    assert rows["as_matrix"]["fresh_fraction"] > 0 and "fresh_fraction" not in mul
+    assert "as_matrix: " in out and "of the fresh-array ceiling" in out
     assert all(r["rates_Mquat_s"] or "status" in r for r in doc["results"])
 
 
@@ -175,6 +178,14 @@ def test_bench_measure_leaves_out_the_call_after_another_librarys():
 
     best = bench.measure({"ours": ours, "other": other}, budget=0, min_rounds=3)
     assert best["ours"] < 0.03
+
+
+def test_bench_fresh_fill_makes_a_new_array_of_the_shape():
+    p = np.arange(12.0).reshape(3, 4)
+    a, b = bench.fresh_fill(p, 9), bench.fresh_fill(p, 9)
+    np.testing.assert_array_equal(a, np.repeat(p[:, :1], 9, axis=1))
+    assert a.shape == (3, 9) and not np.shares_memory(a, b)
+    np.testing.assert_array_equal(bench.fresh_fill(p, 3), np.repeat(p[:, :1], 3, axis=1))
 
 
 def test_bench_rejects_bad_n():

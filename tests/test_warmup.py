@@ -126,3 +126,13 @@ def test_command_line_verb():
     args = build_parser().parse_args(["warmup", "--dtype", "float32"])
     assert (args.func, args.dtype) == (cmd_warmup, "float32")
     assert build_parser().parse_args(["warmup"]).dtype == "all"
+
+
+def test_test_workers_lock_their_cache_writes():
+    """Under pytest-xdist (the README's ``-n auto``) the workers share numba's cache:
+    conftest.py makes each one's writes hold the warm-up's file lock."""
+    if not os.environ.get("PYTEST_XDIST_TESTRUNUID"):
+        pytest.skip("not running under pytest-xdist")
+    from numba.core.caching import IndexDataCacheFile
+
+    assert IndexDataCacheFile.save.__name__ == "locked_save"
