@@ -1,6 +1,7 @@
 """Euler angles against scipy's Rotation.as_euler / from_euler (the oracle)."""
 
 import os
+import re
 import warnings
 
 import numpy as np
@@ -88,6 +89,23 @@ def test_kernels_stay_float32():
         for s in sigs:  # every float array argument (input and output) is float32
             arrays = [a for a in s if hasattr(a, "ndim") and "float" in a.dtype.name]
             assert len(arrays) == 2 and all(a.dtype.name == "float32" for a in arrays)
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="inspects compiled code")
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_as_euler_loop_vectorises(dtype):
+    """The angles go through a block of planes, not straight into the rows of the
+    result: with those stride-3 stores in the loop, LLVM judged it not worth
+    vectorising on AVX2 CPUs (Zen 3: 11 against 45 Mq/s in float64)."""
+    import numba
+
+    qa.as_euler(np.ones((3, 4), dtype), "xyz")
+    sig = next(s for s in euler._as_euler.serial.signatures if s[0].dtype.name == dtype)
+    fresh = numba.njit(cache=False, error_model="numpy")(euler._as_euler.py_func)  # cached code has no IR to see
+    fresh.compile(sig)
+    llvm = fresh.inspect_llvm(sig)
+    ftype = "double" if dtype == "float64" else "float"
+    assert re.search(rf"= fmul (?:\w+ )*<\d+ x {ftype}>", llvm), "the as_euler loop did not vectorise"
 
 
 def gimbal_angles(seq, n, rng):
