@@ -161,3 +161,69 @@ def test_prefer_no_gather_marks_the_loop_and_keeps_its_results():
         if mark:
             assert "vgather" not in asm and "vscatter" not in asm
     np.testing.assert_array_equal(outs[0], outs[1])
+
+
+_ELEMENTS_MODULE = '''
+from quatarray._jit import element, inline, kernel
+
+@inline
+def twice(x):
+    return 2.0 * x
+
+@element
+def plus_twice(x, y):
+    return x + twice(y)
+
+@kernel
+def first(a):
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += plus_twice(a[i], 1.0)
+    return s
+
+@kernel
+def second(a):
+    return twice(a[0]) + plus_twice(a[1], a[2])
+'''
+
+_ELEMENTS_SCRIPT = """
+import json, sys
+import numpy as np
+from numba.core import event
+import elems
+calls = {"first": lambda: elems.first(np.arange(4.0)), "second": lambda: elems.second(np.arange(3.0))}
+rec = event.RecordingListener()
+with event.install_listener("numba:compile", rec):
+    value = calls[sys.argv[1]]()
+compiled = sorted({ev.data["dispatcher"].py_func.__name__ for _, ev in rec.buffer if ev.is_start})
+libs = {f.__name__: type(next(iter(f.overloads.values())).library).__name__
+        for f in (elems.twice, elems.plus_twice) if f.overloads}
+print(json.dumps([value, compiled, libs, elems.twice(1.5)]))
+"""
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="inspects compiled code")
+def test_element_functions_compile_no_machine_code_of_their_own(tmp_path):
+    """An element function's own module is neither optimised nor compiled to machine
+    code (its callers link its IR and compile it as part of themselves); the cache keeps
+    its IR, from which a later process compiles a new caller; calls from Python run the
+    twin."""
+    import json
+    import subprocess
+    import sys
+
+    (tmp_path / "elems.py").write_text(_ELEMENTS_MODULE)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
+    env.pop("QUATARRAY_NO_CACHE", None)
+    runs = []
+    for name in ("first", "second"):
+        r = subprocess.run([sys.executable, "-c", _ELEMENTS_SCRIPT, name], env=env, cwd=tmp_path,
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+        runs.append(json.loads(r.stdout.splitlines()[-1]))
+    (v1, compiled1, libs1, t1), (v2, compiled2, libs2, t2) = runs
+    assert v1 == 0 + 1 + 2 + 3 + 4 * 2.0 and v2 == 0.0 + 1 + 2 * 2 and t1 == t2 == 3.0
+    assert compiled1 == ["first", "plus_twice", "twice"]
+    assert libs1 == {"twice": "ElementLibrary", "plus_twice": "ElementLibrary"}
+    assert compiled2 == ["second"]  # the elements came from the cache (their IR)
+    assert libs2 == {"twice": "JITCodeLibrary", "plus_twice": "JITCodeLibrary"}
