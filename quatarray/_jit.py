@@ -24,10 +24,7 @@ Kernel layers
     The default for element functions: compiled once as its own function
     (an LLVM call from the loop that uses it), cached, and cheap to compile:
     without the CPython and C wrappers (:data:`NO_WRAPPERS`), which only calls
-    from Python need (those run a wrapped twin, :class:`_Element`), and
-    without machine code or module-level optimisation of its own (its callers
-    link its LLVM IR and compile it as part of themselves; see
-    :func:`_element_pipeline`: 7-12 % of a spline's first call).
+    from Python need (those run a wrapped twin, :class:`_Element`).
 ``inline``
     Like ``element`` (compiled once per signature, cached) but marked
     ``alwaysinline`` for LLVM (numba's ``forceinline``), so every caller gets
@@ -141,82 +138,6 @@ class _Dispatcher(CPUDispatcher):
 NO_WRAPPERS = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 
 
-def _element_pipeline():
-    """numba's compiler for element functions: the pipeline of every function, but the
-    machine code is left out. An element function runs only inlined into the kernels
-    that call it (or as its Python twin, compiled apart): each caller links its LLVM
-    IR and optimises and compiles it as part of itself. numba would also optimise the
-    element's own module (with everything it calls linked in) and compile it to
-    machine code, for nothing. Its library keeps the IR after the per-function passes,
-    and the cache keeps that (bitcode; a later process loading it to compile a new
-    caller compiles the element's machine code then, as numba does for bitcode)."""
-    from numba.core import codegen as _codegen
-    from numba.core.compiler import Compiler, DefaultPassBuilder
-    from numba.core.compiler_machinery import LoweringPass, register_pass
-    from numba.core.typed_passes import NativeLowering
-
-    class _CodegenNoEnv:
-        """The codegen as a library of no machine code shows it: no environment to set."""
-
-        def __init__(self, codegen):
-            self._codegen = codegen
-
-        def __getattr__(self, name):
-            return getattr(self._codegen, name)
-
-        def set_env(self, env_name, env):
-            pass
-
-    class ElementLibrary(_codegen.JITCodeLibrary):
-        @property
-        def codegen(self):
-            return _CodegenNoEnv(self._codegen)
-
-        def _optimize_final_module(self):
-            pass  # each caller optimises it with itself
-
-        def _finalize_final_module(self):
-            self._finalize_dynamic_globals()
-            self._verify_declare_only_symbols()
-            self._finalized = True  # not added to the engine: no machine code
-
-        def get_pointer_to_function(self, name):
-            self._ensure_finalized()
-            return 0
-
-        def serialize_using_object_code(self):
-            return self.serialize_using_bitcode()
-
-    @register_pass(mutates_CFG=False, analysis_only=False)
-    class ElementLibraryPass(LoweringPass):
-        _name = "quatarray_element_library"
-
-        def __init__(self):
-            LoweringPass.__init__(self)
-
-        def run_pass(self, state):
-            if state.library is None:  # what NativeLowering would make, as an ElementLibrary
-                state.library = state.targetctx.codegen().create_library(state.func_id.func_qualname)
-                state.library.enable_object_caching()
-                if type(state.library) is _codegen.JITCodeLibrary:  # (another codegen's: left as it is)
-                    state.library.__class__ = ElementLibrary
-            return True
-
-    class ElementCompiler(Compiler):
-        def define_pipelines(self):
-            pm = DefaultPassBuilder.define_nopython_pipeline(self.state)
-            passes = [cls for cls, _ in pm.passes]
-            if NativeLowering in passes[1:]:  # (a numba whose pipeline differs: left as it is)
-                pm.add_pass_after(ElementLibraryPass, passes[passes.index(NativeLowering) - 1])
-            pm.finalize()
-            return [pm]
-
-    return ElementCompiler
-
-
-ELEMENT_PIPELINE = _element_pipeline()
-
-
 class _Element(_Dispatcher):
     """The dispatcher of an element function (:data:`NO_WRAPPERS`). A call from
     Python (a test, a REPL) runs a twin compiled with the wrappers, in memory only
@@ -226,8 +147,7 @@ class _Element(_Dispatcher):
     def __call__(self, *args, **kws):
         twin = self.__dict__.get("_python_twin")
         if twin is None:
-            keep = {k: v for k, v in self.targetoptions.items()
-                    if k not in NO_WRAPPERS and k not in ("nopython", "pipeline_class")}
+            keep = {k: v for k, v in self.targetoptions.items() if k not in NO_WRAPPERS and k != "nopython"}
             twin = self.__dict__["_python_twin"] = numba.njit(**keep)(self.py_func)
         return twin(*args, **kws)
 
@@ -243,7 +163,7 @@ def _njit(fn, cls=_Dispatcher, **options):
 
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn, _Element, pipeline_class=ELEMENT_PIPELINE, **NO_WRAPPERS)
+    return _njit(fn, _Element, **NO_WRAPPERS)
 
 
 def inline(fn):
@@ -253,7 +173,7 @@ def inline(fn):
     vectoriser; use this for the per-row math of loops that must run as SIMD
     (see the module docstring).
     """
-    return _njit(fn, _Element, forceinline=True, pipeline_class=ELEMENT_PIPELINE, **NO_WRAPPERS)
+    return _njit(fn, _Element, forceinline=True, **NO_WRAPPERS)
 
 
 def ir_inline(fn):
