@@ -10,6 +10,13 @@ Environment variables
 QUATARRAY_NO_CACHE
     Set to ``1`` to keep numba's on-disk cache off (for read-only
     installs or when debugging a kernel).
+QUATARRAY_CACHE_LOCK
+    A file's path: every write of this process to numba's on-disk cache
+    holds an exclusive lock on that file (POSIX). For processes that share
+    one cache and compile at once (several Dask workers of a machine, the
+    warm-up's workers, a test run on every core): numba's index update is
+    not atomic across processes, and two of them adding entries to one
+    function's index could both pick the same data file name.
 QUATARRAY_PARALLEL_MIN_ROWS
     Batches with at least this many rows run the multi-threaded variant of
     a row loop (default 200000, chosen from ``benchmarks/``). ``0`` means
@@ -105,6 +112,38 @@ def _defer_blas_probe():
 
 
 _defer_blas_probe()
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: no lock
+    fcntl = None
+CACHE_LOCK_ENV = "QUATARRAY_CACHE_LOCK"
+CAN_LOCK = fcntl is not None
+
+
+def lock_cache_writes(path):
+    """Make this process's writes to numba's cache hold an exclusive lock on the
+    file `path` (see ``QUATARRAY_CACHE_LOCK``); once per process."""
+    from numba.core.caching import IndexDataCacheFile
+
+    save = IndexDataCacheFile.save
+    if getattr(save, "lock_path", None) is not None:
+        return
+
+    def locked_save(self, key, data):
+        with open(path, "a") as f:
+            fcntl.flock(f, fcntl.LOCK_EX)
+            try:
+                save(self, key, data)
+            finally:
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+    locked_save.lock_path = path
+    IndexDataCacheFile.save = locked_save
+
+
+if CAN_LOCK and os.environ.get(CACHE_LOCK_ENV):
+    lock_cache_writes(os.environ[CACHE_LOCK_ENV])
 
 CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))

@@ -13,7 +13,9 @@ line there (a test checks that every name of ``quatarray.__all__`` has one).
 
 Numba's cache index is not safe against two processes adding entries to the
 same function at once (both may pick the same data file name), so inside the
-workers every cache write holds an exclusive lock on one file.
+workers every cache write holds an exclusive lock on one file
+(``QUATARRAY_CACHE_LOCK``: the caller's own, when it has one, so that the
+workers also wait for the other processes that use it).
 """
 
 import json
@@ -30,13 +32,13 @@ import numpy as np
 
 DTYPES = {"float64": ("float64",), "float32": ("float32",), "all": ("float64", "float32")}
 VARIANTS = ("serial", "parallel")
-_LOCK_ENV = "QUATARRAY_WARMUP_LOCK"
-
+_LOCK_ENV = "QUATARRAY_CACHE_LOCK"  # quatarray._jit.CACHE_LOCK_ENV (no numba import here)
 try:
-    import fcntl
+    import fcntl  # noqa: F401 - only whether it exists
 except ImportError:  # Windows: one worker process
-    fcntl = None
-_CAN_LOCK = fcntl is not None
+    _CAN_LOCK = False
+else:
+    _CAN_LOCK = True
 
 # --------------------------------------------------------------------------
 # the calls
@@ -269,27 +271,6 @@ def covered(name):
 # the worker process
 
 
-def _locked_cache_writes(path):
-    """Make numba's cache writes in this process hold an exclusive lock on `path`.
-
-    Numba's index update (read the index, pick a free data file name, write
-    both) is not atomic across processes: two workers adding entries to one
-    function at once could both pick the same file name."""
-    from numba.core.caching import IndexDataCacheFile
-
-    save = IndexDataCacheFile.save
-
-    def locked_save(self, key, data):
-        with open(path, "a") as f:
-            fcntl.flock(f, fcntl.LOCK_EX)
-            try:
-                save(self, key, data)
-            finally:
-                fcntl.flock(f, fcntl.LOCK_UN)
-
-    IndexDataCacheFile.save = locked_save
-
-
 def _run_job(qa, jit, name, dtype, variant, samples):
     """Run one table entry: (seconds, number of functions numba compiled, error
     message or "")."""
@@ -315,8 +296,6 @@ def _worker():
     import quatarray as qa
     from quatarray import _jit
 
-    if os.environ.get(_LOCK_ENV) and _CAN_LOCK:
-        _locked_cache_writes(os.environ[_LOCK_ENV])
     samples = {d: _samples(d) for d in DTYPES["all"]}
     for line in sys.stdin:
         name, dtype, variant = json.loads(line)
@@ -382,10 +361,11 @@ def _jobs(dtypes, names):
 
 def _env(lock):
     """The workers' environment: this one, with this process's import path (as
-    multiprocessing's spawn does), so they import the same quatarray."""
+    multiprocessing's spawn does), so they import the same quatarray, and the
+    cache lock (this process's own if it has one, else `lock`)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
-    env[_LOCK_ENV] = lock
+    env[_LOCK_ENV] = env.get(_LOCK_ENV) or lock
     return env
 
 

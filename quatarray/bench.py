@@ -140,21 +140,25 @@ _FILLS = {}
 def fresh_fill(p, width):
     """A new ``(len(p), width)`` float64 array, allocated as quatarray's functions allocate
     their results (``np.empty``) and filled by a numba ``prange`` loop that reads one float
-    of each quaternion and writes its row. The ceiling of a function returning a new array
-    of that size on this machine: the system zeroes each fresh page on its first touch, a
-    cost the triad, writing into an existing array, does not pay."""
-    fill = _FILLS.get(width)
+    of each quaternion and writes its row (on every thread from the size where
+    quatarray's row loops go parallel, on one below it). The ceiling of a function
+    returning a new array of that size on this machine: the system zeroes each fresh
+    page on its first touch, a cost the triad, writing into an existing array, does not pay."""
+    from quatarray import _jit
+
+    parallel = p.shape[0] >= _jit.min_rows()  # as quatarray's row loops choose
+    fill = _FILLS.get((width, parallel))
     if fill is None:
         import numba
 
-        @numba.njit(parallel=True, cache=False)
+        @numba.njit(parallel=parallel, cache=False)
         def fill(out, p):
             for i in numba.prange(p.shape[0]):
                 x = p[i, 0]
                 for j in range(width):  # a constant of this compiled copy: the stores vectorise
                     out[width * i + j] = x
 
-        _FILLS[width] = fill
+        _FILLS[width, parallel] = fill
     out = np.empty((p.shape[0], width))
     fill(out.reshape(-1), p)
     return out

@@ -30,19 +30,6 @@ def rng():
     return np.random.default_rng(20261122)
 
 
-# The README's test command runs the suite on every core (pytest-xdist's ``-n auto``).
-# The workers share numba's on-disk cache, whose index update is not atomic across
-# processes: each worker's cache writes hold an exclusive lock on one file, as the
-# warm-up's workers do (one file for every run of a user: runs at once only wait).
-if os.environ.get("PYTEST_XDIST_TESTRUNUID"):
-    import tempfile
-
-    from quatarray import _warmup
-
-    if _warmup._CAN_LOCK:
-        _warmup._locked_cache_writes(os.path.join(tempfile.gettempdir(), f"quatarray-tests-{os.getuid()}.lock"))
-
-
 @pytest.hookimpl(trylast=True)  # after -k and -m have deselected
 def pytest_collection_modifyitems(session, config, items):
     """The longest test (the interpreted pass, two minutes on one core) first, so that

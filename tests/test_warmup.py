@@ -17,6 +17,7 @@ import json
 import os
 import subprocess
 import sys
+from unittest import mock
 
 import pytest
 
@@ -130,9 +131,31 @@ def test_command_line_verb():
 
 def test_test_workers_lock_their_cache_writes():
     """Under pytest-xdist (the README's ``-n auto``) the workers share numba's cache:
-    conftest.py makes each one's writes hold the warm-up's file lock."""
+    the root conftest.py sets QUATARRAY_CACHE_LOCK, so their writes hold its lock."""
     if not os.environ.get("PYTEST_XDIST_TESTRUNUID"):
         pytest.skip("not running under pytest-xdist")
     from numba.core.caching import IndexDataCacheFile
 
-    assert IndexDataCacheFile.save.__name__ == "locked_save"
+    from quatarray import _jit
+
+    assert _jit.CAN_LOCK and os.environ["QUATARRAY_CACHE_LOCK"].endswith(".quatarray-tests.lock")
+    assert IndexDataCacheFile.save.lock_path == os.environ["QUATARRAY_CACHE_LOCK"]
+
+
+@pytest.mark.skipif(not _warmup._CAN_LOCK, reason="no file lock on this system")
+def test_cache_lock_from_the_environment(tmp_path):
+    """QUATARRAY_CACHE_LOCK locks every cache write of a process that uses a kernel
+    (a child of a locked process inherits it), and the warm-up's workers take the
+    caller's own lock when it has one."""
+    lock = str(tmp_path / "cache.lock")
+    code = ("import quatarray as qa, numpy as np; from numba.core.caching import IndexDataCacheFile as I\n"
+            "qa.multiply(np.ones(4), np.ones(4)); print(getattr(I.save, 'lock_path', None))")
+    for value, expect in ((lock, lock), ("", "None")):
+        env = dict(_env(tmp_path / "cache"), QUATARRAY_CACHE_LOCK=value)
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+        assert out.stdout.split() == [expect]
+    assert os.path.exists(lock)  # the kernel's cache entry was written under it
+    with mock.patch.dict(os.environ, {"QUATARRAY_CACHE_LOCK": lock}):
+        assert _warmup._env("/other.lock")["QUATARRAY_CACHE_LOCK"] == lock
+    with mock.patch.dict(os.environ, {"QUATARRAY_CACHE_LOCK": ""}):
+        assert _warmup._env("/other.lock")["QUATARRAY_CACHE_LOCK"] == "/other.lock"
