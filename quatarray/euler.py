@@ -131,7 +131,7 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, lo, hi, out, flags):
     the float64 loop ran about 10 % slower. The angles of EULER_BLOCK rows go into a
     block of three planes (one per angle, in L1 cache), then into their rows of
     `out`: with the rows' stride-3 stores in it, LLVM's cost model for AVX2 CPUs
-    (Zen 3) found the loop not worth vectorising (11 against 62 Mq/s there).
+    (Zen 3) found the loop not worth vectorising (11 against 45 Mq/s there).
     """
     n = q.shape[0]
     plane = np.empty(3 * EULER_BLOCK, out.dtype)
