@@ -17,7 +17,7 @@ convention of :func:`quatarray.power`.
 
 import numpy as np
 
-from ._jit import element, inline, like
+from ._jit import element, fmuladd, inline, like
 from ._trig import half_arc, sincos
 
 
@@ -38,8 +38,8 @@ def arc(p, q, shortest):
     """
     dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
-    d2 = dw * dw + dx * dx + dy * dy + dz * dz
-    s2 = sw * sw + sx * sx + sy * sy + sz * sz
+    d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
+    s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
     flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
     m2 = s2 if flip else d2
     p2 = d2 if flip else s2

@@ -47,7 +47,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from ._jit import CACHE, INLINE_OPTIONS, inline, like
+from ._jit import CACHE, INLINE_OPTIONS, fmuladd, inline, like
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01
@@ -117,20 +117,20 @@ def _reduce_pio2(x, k):
         p1, p2, p3, p4 = (np.float32(c) for c in (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4))
 
         def impl32(x, k):
-            r = x - k * p1  # exact (Sterbenz) for |k| < 2¹⁵
-            r = r - k * p2  # k·p2, k·p3 exact; the differences exact when they cancel
-            r = r - k * p3
-            return r - k * p4
+            r = fmuladd(-k, p1, x)  # exact (Sterbenz) for |k| < 2¹⁵
+            r = fmuladd(-k, p2, r)  # k·p2, k·p3 exact; the differences exact when they cancel
+            r = fmuladd(-k, p3, r)
+            return fmuladd(-k, p4, r)
 
         return impl32
     if isinstance(x, types.Float):
         p1, p2, p3, p4 = (np.float64(c) for c in (PIO2_1, PIO2_2, PIO2_3, PIO2_4))
 
         def impl64(x, k):
-            r = x - k * p1  # exact for |k| < 2²⁰, as are k·p2, k·p3
-            r = r - k * p2
-            r = r - k * p3
-            return r - k * p4  # matters only within ~1e-9 of a multiple of π/2
+            r = fmuladd(-k, p1, x)  # exact for |k| < 2²⁰, as are k·p2, k·p3
+            r = fmuladd(-k, p2, r)
+            r = fmuladd(-k, p3, r)
+            return fmuladd(-k, p4, r)  # matters only within ~1e-9 of a multiple of π/2
 
         return impl64
 
@@ -147,12 +147,14 @@ def sincos(x):
     r = like(x, -R_MAX) if r < like(x, -R_MAX) else r
     z = r * r
     # sin(r) = r + r z (S1 + z P), cos(r) = 1 - z/2 + z² Q (fdlibm's split keeps it exact)
-    ps = like(x, S2) + z * (like(x, S3) + z * (like(x, S4) + z * (like(x, S5) + z * like(x, S6))))
-    s = r + r * z * (like(x, S1) + z * ps)
-    pc = z * (like(x, C1) + z * (like(x, C2) + z * (like(x, C3) + z * (like(x, C4) + z * (like(x, C5) + z * like(x, C6))))))
+    # (Horner's scheme in fused multiply-adds: see quatarray._jit.fmuladd)
+    ps = fmuladd(z, fmuladd(z, fmuladd(z, fmuladd(z, like(x, S6), like(x, S5)), like(x, S4)), like(x, S3)), like(x, S2))
+    s = fmuladd(r * z, fmuladd(z, ps, like(x, S1)), r)
+    pc = fmuladd(z, fmuladd(z, fmuladd(z, like(x, C6), like(x, C5)), like(x, C4)), like(x, C3))
+    pc = z * fmuladd(z, fmuladd(z, pc, like(x, C2)), like(x, C1))
     hz = like(x, 0.5) * z
     w = like(x, 1.0) - hz
-    c = w + (((like(x, 1.0) - w) - hz) + z * pc)
+    c = w + fmuladd(z, pc, (like(x, 1.0) - w) - hz)
     # quadrant k mod 4, in floating point (no float -> int conversion of inf/nan);
     # every choice is a single-condition select so the loop stays vectorisable
     m = k - like(x, 4.0) * np.floor(k * like(x, 0.25))
@@ -170,9 +172,11 @@ def atan_small(x):
     """atan(x) for |x| ≤ 7/16 (fdlibm)."""
     z = x * x
     w = z * z
-    s1 = z * (like(x, AT0) + w * (like(x, AT2) + w * (like(x, AT4) + w * (like(x, AT6) + w * (like(x, AT8) + w * like(x, AT10))))))
-    s2 = w * (like(x, AT1) + w * (like(x, AT3) + w * (like(x, AT5) + w * (like(x, AT7) + w * like(x, AT9)))))
-    return x - x * (s1 + s2)
+    s1 = fmuladd(w, fmuladd(w, fmuladd(w, like(x, AT10), like(x, AT8)), like(x, AT6)), like(x, AT4))
+    s1 = z * fmuladd(w, fmuladd(w, s1, like(x, AT2)), like(x, AT0))
+    s2 = fmuladd(w, fmuladd(w, fmuladd(w, like(x, AT9), like(x, AT7)), like(x, AT5)), like(x, AT3))
+    s2 = w * fmuladd(w, s2, like(x, AT1))
+    return fmuladd(-x, s1 + s2, x)
 
 
 @inline

@@ -142,6 +142,33 @@ def test_slerp_broadcasting_out_and_readonly(rng):
         qa.slerp(a, b, 1j)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_slerp_rows_do_not_depend_on_the_batch(rng, dtype):
+    """The three-pass slerp loop (blocks of SLERP_BLOCK rows inside blocks of ROWS):
+    a row's result is the same, bit for bit, alone, at any place in a batch (SIMD
+    part or remainder of a pass), in the serial and the parallel variant and with
+    `out` one of the inputs; exact ends, identical and antipodal pairs included."""
+    from quatarray import _jit
+
+    n = 2 * I.ROWS + I.SLERP_BLOCK + 37
+    p, q = qa.random(n, rng, dtype), qa.random(n, rng, dtype)
+    t = rng.uniform(-0.5, 1.5, n).astype(dtype)
+    t[::7], t[3::11] = 1, 0
+    q[5::13] = p[5::13]
+    q[6::17] = -p[6::17]
+    with _jit.variant("serial"):
+        want = qa.slerp(p, q, t)
+        assert np.array_equal(np.concatenate([qa.slerp(p[i:i + 1], q[i:i + 1], t[i:i + 1]) for i in range(0, n, 97)]), want[::97])
+        assert np.array_equal(qa.slerp(p[1:], q[1:], t[1:]), want[1:])  # every row moved to another lane and block
+        pp = p.copy()
+        assert np.array_equal(qa.slerp(pp, q, t, out=pp), want)
+    with _jit.variant("parallel"):
+        assert np.array_equal(qa.slerp(p, q, t), want)
+    one, zero = t == 1, t == 0
+    assert np.all(np.all(want[one] == q[one], axis=1) | np.all(want[one] == -q[one], axis=1))  # exact ends
+    assert np.array_equal(want[zero], p[zero])
+
+
 def test_slerp_float32(rng):
     p, q = qa.random(100, rng, np.float32), qa.random(100, rng, np.float32)
     r = qa.slerp(p, q, 0.3)

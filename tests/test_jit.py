@@ -161,3 +161,39 @@ def test_prefer_no_gather_marks_the_loop_and_keeps_its_results():
         if mark:
             assert "vgather" not in asm and "vscatter" not in asm
     np.testing.assert_array_equal(outs[0], outs[1])
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fmuladd_is_one_rounding_or_two_and_the_same_in_every_lane(dtype):
+    """``fmuladd(a, b, c)``: a·b + c rounded once (an FMA) or twice (no FMA on this
+    CPU), the same choice for every element of a loop, SIMD part or remainder."""
+    from fractions import Fraction
+
+    import numba
+
+    from quatarray._jit import fmuladd
+
+    @numba.njit
+    def loop(a, b, c, out):
+        for i in range(a.shape[0]):
+            out[i] = fmuladd(a[i], b[i], c[i])
+
+    rng = np.random.default_rng(5)
+    a = (1 + rng.integers(1, 2**20, 203) * np.finfo(dtype).eps).astype(dtype)
+    b = (1 - rng.integers(1, 2**20, 203) * np.finfo(dtype).eps).astype(dtype)
+    c = -np.ones(203, dtype)
+    out = np.empty(203, dtype)
+    loop(a, b, c, out)
+    assert out.dtype == dtype
+    if numba.config.DISABLE_JIT:
+        assert np.array_equal(out, a * b + c)
+        return
+    # a·b + c exactly (fractions), rounded once to the float type (float32: a·b − 1
+    # is exact in float64, so one rounding)
+    exact = [Fraction(float(x)) * Fraction(float(y)) + Fraction(float(z)) for x, y, z in zip(a, b, c)]
+    fused = np.array([float(e) for e in exact]).astype(dtype)
+    assert np.array_equal(out, fused) or np.array_equal(out, a * b + c)
+    one = np.empty(1, dtype)
+    for i in (0, 1, 5, 202):  # each alone: the scalar code
+        loop(a[i:i + 1], b[i:i + 1], c[i:i + 1], one)
+        assert one[0] == out[i]
