@@ -3,7 +3,10 @@
 Kernels are compiled lazily, on their first call, for the argument types
 they meet (float32 and float64, contiguous or strided, writable or
 read-only), and cached on disk (``cache=True``) so that later processes
-load machine code instead of compiling.
+load machine code instead of compiling. The cached code of every kernel is
+stamped with all of the package's sources (:class:`_PackageLocator`): a kernel
+inlines element functions of other files, which numba's own stamp (the
+kernel's file) does not cover.
 
 Environment variables
 ---------------------
@@ -50,6 +53,14 @@ Kernel layers
 ``like(x, c)``
     The constant ``c`` in ``x``'s float type, so float32 kernels stay
     float32 (a bare ``2.0`` would promote them to float64).
+``fmuladd(a, b, c)``
+    a·b + c as one fused multiply-add where the CPU has the instruction
+    (LLVM's ``fmuladd``: one rounding), a multiply and an add elsewhere. The
+    polynomial trigonometry and slerp use it for their chains of
+    multiply-adds; LLVM makes the same choice for scalar and SIMD code, so a
+    row's result never depends on its place in a batch (fast-math's
+    ``contract`` flag on every kernel, which fuses whatever pairs LLVM picks,
+    gave a float32 spline's SIMD lane groups results other than row by row).
 ``exponent_scales(m)``
     ``(2^(1-E), 2^E)`` for a positive normal float m = 2^E·f (1 ≤ f < 2),
     read from m's exponent bits: exact powers of two, no division, and
@@ -70,6 +81,7 @@ Kernel layers
 
 import contextlib
 import contextvars
+import hashlib
 import importlib.util
 import inspect
 import os
@@ -145,6 +157,77 @@ def lock_cache_writes(path):
 
 if CAN_LOCK and os.environ.get(CACHE_LOCK_ENV):
     lock_cache_writes(os.environ[CACHE_LOCK_ENV])
+
+
+def package_stamp(root):
+    """sha256 of the ``.py`` files under the folder `root` (their paths relative to
+    it and their contents, in sorted order): a stamp that changes when any of them
+    does."""
+    h = hashlib.sha256()
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        for name in sorted(filenames):
+            if name.endswith(".py"):
+                path = os.path.join(dirpath, name)
+                h.update(os.path.relpath(path, root).encode() + b"\0")
+                with open(path, "rb") as f:
+                    h.update(f.read() + b"\0")
+    return h.hexdigest()
+
+
+class _PackageLocator:
+    """A numba cache locator for the functions of quatarray's own files: numba's
+    own (the first of its standard locators that takes the function), with a
+    source stamp that also holds :func:`package_stamp` of the package.
+
+    numba stamps a function's cached code with the hash of its own source file
+    only, while a kernel also holds the code of the element functions of other
+    files that it inlines: a kernel of ``conversions.py`` compiled before a change
+    of ``_trig.py`` would keep loading the old trigonometry (after an upgrade that
+    changed ``_trig.py`` alone, for instance, where the cache outlives the
+    sources). With the package's stamp, a change of any source file makes every
+    kernel compile again."""
+
+    _stamp = None  # the package's, computed at the first locator
+
+    def __init__(self, inner):
+        self._inner = inner
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+    def get_source_stamp(self):
+        if _PackageLocator._stamp is None:
+            _PackageLocator._stamp = package_stamp(_PACKAGE_DIR)
+        return self._inner.get_source_stamp(), _PackageLocator._stamp
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        try:
+            if os.path.commonpath([os.path.abspath(py_file), _PACKAGE_DIR]) != _PACKAGE_DIR:
+                return None
+        except ValueError:  # another drive (Windows)
+            return None
+        for locator in _STANDARD_LOCATORS:
+            inner = locator.from_function(py_func, py_file)
+            if inner is not None:
+                return cls(inner)
+        return None
+
+
+def _stamp_the_package():
+    """Put :class:`_PackageLocator` first in numba's cache locators (once)."""
+    from numba.core.caching import CacheImpl
+
+    classes = CacheImpl._locator_classes
+    if _PackageLocator not in classes:
+        _STANDARD_LOCATORS[:] = list(classes)
+        classes.insert(0, _PackageLocator)
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
+_STANDARD_LOCATORS = []
+_stamp_the_package()
 
 CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
@@ -442,10 +525,11 @@ def fmuladd(a, b, c):
 
     For the long chains of multiply-adds in the polynomial trigonometry and in
     slerp: one instruction of four cycles instead of two of three shortens them
-    (slerp 12 % faster on Zen 3). Unlike fast-math's ``contract`` flag, which
-    lets LLVM fuse any pair it likes, the pairs are fixed here, and LLVM makes the
-    same choice (FMA or not) for scalar and SIMD code of a type: a row's result
-    does not depend on which part of a loop computes it, nor on the batch size.
+    (the slerp loop 15 % faster on Zen 3). Unlike fast-math's ``contract`` flag,
+    which lets LLVM fuse any pair it finds, the pairs are fixed here, and LLVM
+    makes the same choice (FMA or not) for scalar and SIMD code of a type: a
+    row's result does not depend on which part of a loop computes it, nor on the
+    batch size.
     Not for code that relies on an exact cancellation (``a·b − b·a`` = 0, as in
     the quaternion products), which a fused multiply-add breaks."""
     return a * b + c

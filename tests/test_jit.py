@@ -1,5 +1,6 @@
-"""quatarray._jit: the serial/parallel choice of the row loops."""
+"""quatarray._jit: the serial/parallel choice of the row loops, fused multiply-adds and the cache stamp."""
 
+import json
 import os
 import threading
 
@@ -197,3 +198,52 @@ def test_fmuladd_is_one_rounding_or_two_and_the_same_in_every_lane(dtype):
     for i in (0, 1, 5, 202):  # each alone: the scalar code
         loop(a[i:i + 1], b[i:i + 1], c[i:i + 1], one)
         assert one[0] == out[i]
+
+
+_COMPILES = """
+import json, sys
+import numpy as np
+from numba.core import event
+import quatarray as qa
+assert qa.__file__.startswith(sys.argv[1]), qa.__file__
+names = []
+class Rec(event.Listener):
+    def on_start(self, ev):
+        names.append(ev.data["dispatcher"].py_func.__qualname__)
+    def on_end(self, ev):
+        pass
+with event.install_listener("numba:compile", Rec()):
+    qa.from_rotvec(np.ones((3, 3)))
+print(json.dumps(names))
+"""
+
+
+def test_cached_kernels_compile_again_when_any_source_file_changes(tmp_path):
+    """numba stamps a function's cached code with its own file's hash only: a kernel
+    of conversions.py must not keep the old code of _trig.py, which it inlines.
+    On a copy of the package: warm cache, no compile; _trig.py changed, the
+    kernel compiles again; conversions.py's own stamp is unchanged."""
+    import shutil
+    import subprocess
+    import sys
+
+    import quatarray
+
+    pkg = tmp_path / "src"
+    shutil.copytree(os.path.dirname(quatarray.__file__), pkg / "quatarray",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=str(pkg), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+    def compiled():
+        r = subprocess.run([sys.executable, "-c", _COMPILES, str(pkg)], env=env, capture_output=True, text=True, timeout=300,
+                           cwd=tmp_path)  # not the checkout, whose package `-c` would import first
+        assert r.returncode == 0, r.stderr[-2000:]
+        return json.loads(r.stdout.splitlines()[-1])
+
+    first = compiled()
+    assert "_from_rotvec" in " ".join(first)  # cold: the kernel compiled
+    assert compiled() == []  # warm: loaded
+    trig = pkg / "quatarray" / "_trig.py"
+    trig.write_text(trig.read_text() + "\n# changed\n")
+    assert "_from_rotvec" in " ".join(compiled())  # the element file changed: compiled again
+    assert compiled() == []
