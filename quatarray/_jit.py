@@ -85,6 +85,7 @@ import hashlib
 import importlib.util
 import inspect
 import os
+import stat
 import sys
 import threading
 import types as _pytypes
@@ -162,16 +163,26 @@ if CAN_LOCK and os.environ.get(CACHE_LOCK_ENV):
 def package_stamp(root):
     """sha256 of the ``.py`` files under the folder `root` (their paths relative to
     it and their contents, in sorted order): a stamp that changes when any of them
-    does."""
+    does.
+
+    Hidden names (an editor's lock link ``.#_trig.py``), entries that are not
+    regular files (a dangling link) and files that cannot be read are left out:
+    the stamp never keeps the package from importing."""
     h = hashlib.sha256()
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__" and not d.startswith("."))
         for name in sorted(filenames):
-            if name.endswith(".py"):
-                path = os.path.join(dirpath, name)
-                h.update(os.path.relpath(path, root).encode() + b"\0")
+            if not name.endswith(".py") or name.startswith("."):
+                continue
+            path = os.path.join(dirpath, name)
+            try:
+                if not stat.S_ISREG(os.stat(path).st_mode):  # before open: a fifo would block
+                    continue
                 with open(path, "rb") as f:
-                    h.update(f.read() + b"\0")
+                    data = f.read()
+            except OSError:
+                continue
+            h.update(os.path.relpath(path, root).encode() + b"\0" + data + b"\0")
     return h.hexdigest()
 
 
@@ -189,11 +200,14 @@ class _PackageLocator:
     kernel compile again."""
 
     _stamp = None  # the package's, computed at the first locator
+    _quatarray_locator = True  # tells this class (and its copies after a reload) apart
 
     def __init__(self, inner):
         self._inner = inner
 
     def __getattr__(self, name):
+        if name == "_inner":  # not set yet (copy, pickle): no recursion
+            raise AttributeError(name)
         return getattr(self._inner, name)
 
     def get_source_stamp(self):
@@ -216,13 +230,14 @@ class _PackageLocator:
 
 
 def _stamp_the_package():
-    """Put :class:`_PackageLocator` first in numba's cache locators (once)."""
+    """Put :class:`_PackageLocator` first in numba's cache locators, in place of
+    any earlier copy of it (``importlib.reload`` of this module makes a new class)."""
     from numba.core.caching import CacheImpl
 
     classes = CacheImpl._locator_classes
-    if _PackageLocator not in classes:
-        _STANDARD_LOCATORS[:] = list(classes)
-        classes.insert(0, _PackageLocator)
+    classes[:] = [c for c in classes if not getattr(c, "_quatarray_locator", False)]
+    _STANDARD_LOCATORS[:] = list(classes)
+    classes.insert(0, _PackageLocator)
 
 
 _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))

@@ -218,6 +218,7 @@ print(json.dumps(names))
 """
 
 
+@pytest.mark.skipif(__import__("numba").config.DISABLE_JIT, reason="no compiled kernels, no cache")
 def test_cached_kernels_compile_again_when_any_source_file_changes(tmp_path):
     """numba stamps a function's cached code with its own file's hash only: a kernel
     of conversions.py must not keep the old code of _trig.py, which it inlines.
@@ -247,3 +248,74 @@ def test_cached_kernels_compile_again_when_any_source_file_changes(tmp_path):
     trig.write_text(trig.read_text() + "\n# changed\n")
     assert "_from_rotvec" in " ".join(compiled())  # the element file changed: compiled again
     assert compiled() == []
+
+
+def test_package_stamp_follows_sources_and_skips_what_it_cannot_read(tmp_path):
+    """The stamp changes with a source's content or name, not with other files,
+    and an editor's lock link, a dangling link, a folder named like a source or
+    an unreadable file never keep the package from importing."""
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    stamp = _jit.package_stamp(tmp_path)
+    (tmp_path / "notes.txt").write_text("not a source")
+    (tmp_path / "__pycache__").mkdir()
+    (tmp_path / "__pycache__" / "c.py").write_text("z = 3\n")
+    os.symlink(tmp_path / "gone.py", tmp_path / ".#a.py")  # emacs' lock link
+    os.symlink(tmp_path / "gone.py", tmp_path / "dangling.py")
+    (tmp_path / "dir.py").mkdir()
+    os.mkfifo(tmp_path / "fifo.py")  # opening it would block
+    assert _jit.package_stamp(tmp_path) == stamp
+    locked = tmp_path / "locked.py"
+    locked.write_text("secret\n")
+    locked.chmod(0)
+    if os.geteuid() != 0:  # root reads it anyway
+        assert _jit.package_stamp(tmp_path) == stamp
+    locked.chmod(0o644)
+    assert _jit.package_stamp(tmp_path) != stamp
+    locked.unlink()
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    assert _jit.package_stamp(tmp_path) != stamp
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    assert _jit.package_stamp(tmp_path) == stamp
+    (tmp_path / "sub" / "b.py").rename(tmp_path / "sub" / "c.py")
+    assert _jit.package_stamp(tmp_path) != stamp
+
+
+_RELOADED = """
+import copy, importlib, json, pickle
+import numpy as np
+from numba.core.caching import CacheImpl
+import quatarray as qa
+from quatarray import _jit
+
+def ours():
+    return [c for c in CacheImpl._locator_classes if getattr(c, "_quatarray_locator", False)]
+
+assert ours() == [_jit._PackageLocator] and CacheImpl._locator_classes[0] is _jit._PackageLocator
+fresh = importlib.reload(_jit)
+assert ours() == [fresh._PackageLocator] and CacheImpl._locator_classes[0] is fresh._PackageLocator
+assert not any(getattr(c, "_quatarray_locator", False) for c in fresh._STANDARD_LOCATORS)
+loc = fresh._PackageLocator.from_function(fresh.package_stamp, fresh.__file__)
+stamp = loc.get_source_stamp()
+assert stamp[1] == fresh.package_stamp(fresh._PACKAGE_DIR)
+assert copy.copy(loc).get_source_stamp() == stamp
+assert pickle.loads(pickle.dumps(loc)).get_source_stamp() == stamp
+assert fresh._PackageLocator.from_function(json.dumps, json.__file__) is None  # not ours
+q = qa.normalize(np.array([[2.0, 0, 0, 0]]))  # compiles and saves through the new locator
+assert np.array_equal(q, [[1.0, 0, 0, 0]])
+print("ok")
+"""
+
+
+def test_the_locator_is_installed_once_and_survives_reload_and_copy(tmp_path):
+    """importlib.reload of _jit replaces the locator instead of stacking a second
+    one (which recursed through the first); a locator copies and pickles. In a
+    subprocess: a reload in the test process would swap _jit's globals under the
+    other tests."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    r = subprocess.run([sys.executable, "-c", _RELOADED], env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and r.stdout.split() == ["ok"], r.stderr[-2000:]
