@@ -232,5 +232,5 @@ def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
 
 # slerp_acc as an LLVM call instead of inlined: for the Bézier curve's acceleration,
 # whose three slerps of moving ends, inlined, made the rate loop 0.4 s longer to
-# compile and 18-20 % slower (the other rate loops run faster with theirs inlined)
+# compile and 10 % slower (the other rate loops run faster with theirs inlined)
 slerp_acc_call = element(specialise(getattr(slerp_acc, "py_func", slerp_acc), "_call"))
