@@ -40,7 +40,7 @@ needed beyond those of the curve's value (one atan2 per arc, one sincos).
 import numpy as np
 
 from ._elements import cross, qconj, qmul, qrotate_raw
-from ._jit import element, inline, like, specialise
+from ._jit import inline, like
 from ._trig import atan2, sincos
 
 SMALL2 = 0.0625  # n² below which the series are used (n < 0.25: their terms to n¹⁰ are exact to 1e-17 there)
@@ -230,7 +230,3 @@ def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     return s, ws, gs
 
 
-# slerp_acc as an LLVM call instead of inlined: for the Bézier curve's acceleration,
-# whose three slerps of moving ends, inlined, made the rate loop 0.4 s longer to
-# compile and 10 % slower (the other rate loops run faster with theirs inlined)
-slerp_acc_call = element(specialise(getattr(slerp_acc, "py_func", slerp_acc), "_call"))

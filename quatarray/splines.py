@@ -55,8 +55,7 @@ from . import _cubic
 from . import _elements as E
 from ._access import load1, load4, store1, store4
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
-from ._rates import (vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_acc_call,
-                     slerp_rates)
+from ._rates import vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
@@ -794,8 +793,7 @@ _PIECES = {
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
 _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
-                                  ir_inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order,
-                                                       slerp_acc=slerp_acc_call if name == "bezier" else slerp_acc)))
+                                  ir_inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
           for name, m in TABLED.items() for order in (1, 2)}
 _EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", inline(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}
