@@ -20,6 +20,10 @@ QUATARRAY_CACHE_LOCK
     warm-up's workers, a test run on every core): numba's index update is
     not atomic across processes, and two of them adding entries to one
     function's index could both pick the same data file name.
+NUMBA_CACHE_LOCATOR_CLASSES
+    numba's own variable: when it is set, numba uses the locators it names
+    instead of its list, and the package stamp above is off (a kernel may
+    then load code built from older sources of the files it inlines).
 QUATARRAY_PARALLEL_MIN_ROWS
     Batches with at least this many rows run the multi-threaded variant of
     a row loop (default 200000, chosen from ``benchmarks/``). ``0`` means
@@ -167,9 +171,25 @@ def package_stamp(root):
 
     Hidden names (an editor's lock link ``.#_trig.py``), entries that are not
     regular files (a dangling link) and files that cannot be read are left out:
-    the stamp never keeps the package from importing."""
+    the stamp never keeps the package from importing. Linked folders are
+    followed (each real folder once). Where `root` lies inside an archive (the
+    package imported from a zip file), the stamp is the archive's whole content."""
     h = hashlib.sha256()
-    for dirpath, dirnames, filenames in os.walk(root):
+    if not os.path.isdir(root):
+        archive = root
+        while archive and not os.path.exists(archive) and os.path.dirname(archive) != archive:
+            archive = os.path.dirname(archive)
+        with open(archive, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        return "archive:" + h.hexdigest()
+    seen = set()
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        real = os.path.realpath(dirpath)
+        if real in seen:  # a link back to a folder already stamped
+            dirnames[:] = []
+            continue
+        seen.add(real)
         dirnames[:] = sorted(d for d in dirnames if d != "__pycache__" and not d.startswith("."))
         for name in sorted(filenames):
             if not name.endswith(".py") or name.startswith("."):

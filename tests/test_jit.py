@@ -282,6 +282,32 @@ def test_package_stamp_follows_sources_and_skips_what_it_cannot_read(tmp_path):
     assert _jit.package_stamp(tmp_path) != stamp
 
 
+def test_package_stamp_follows_linked_folders_and_archives(tmp_path):
+    """A linked subfolder's sources count (a loop of links ends); a package imported
+    from a zip file (its folder path runs through the archive) is stamped with the
+    archive, not with the nothing os.walk finds there."""
+    import zipfile
+
+    pkg, real = tmp_path / "pkg", tmp_path / "real"
+    pkg.mkdir()
+    real.mkdir()
+    (pkg / "a.py").write_text("x = 1\n")
+    (real / "b.py").write_text("y = 2\n")
+    os.symlink(real, pkg / "sub")
+    os.symlink(pkg, real / "loop")  # back up: each real folder is stamped once
+    stamp = _jit.package_stamp(pkg)
+    (real / "b.py").write_text("y = 3\n")
+    assert _jit.package_stamp(pkg) != stamp
+
+    archive = tmp_path / "pkg.zip"
+    stamps = []
+    for text in ("x = 1\n", "x = 2\n"):
+        with zipfile.ZipFile(archive, "w") as z:
+            z.writestr("quatarray/a.py", text)
+        stamps.append(_jit.package_stamp(str(archive / "quatarray")))
+    assert stamps[0] != stamps[1] and all(st.startswith("archive:") for st in stamps)
+
+
 _RELOADED = """
 import copy, importlib, json, pickle
 import numpy as np
