@@ -179,9 +179,12 @@ def package_stamp(root):
         archive = root
         while archive and not os.path.exists(archive) and os.path.dirname(archive) != archive:
             archive = os.path.dirname(archive)
-        with open(archive, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
+        try:
+            with open(archive, "rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError:  # no archive to read: the files' own stamps only
+            return "archive:unread"
         return "archive:" + h.hexdigest()
     seen = set()
     for dirpath, dirnames, filenames in os.walk(root, followlinks=True):

@@ -306,6 +306,7 @@ def test_package_stamp_follows_linked_folders_and_archives(tmp_path):
             z.writestr("quatarray/a.py", text)
         stamps.append(_jit.package_stamp(str(archive / "quatarray")))
     assert stamps[0] != stamps[1] and all(st.startswith("archive:") for st in stamps)
+    assert _jit.package_stamp(str(tmp_path / "gone" / "quatarray")) == "archive:unread"  # an ancestor is a folder
 
 
 _RELOADED = """
