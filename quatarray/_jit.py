@@ -344,9 +344,12 @@ def ir_inline(fn):
     functions: the caller then compiles and optimises it as part of itself, where
     a call to a separate kernel has LLVM optimise its code once more in every
     caller above it. Nesting multiplies compile time, since numba re-runs its
-    front end on the inlined body at every level: the spline's piece kernel
-    inlines its evaluation loop, which inlines the method's run (shallow bodies,
-    measured no slower to compile than LLVM inlining); keep deeper chains out.
+    front end on the inlined body at every level: the spline's evaluation loop
+    inlines the method's run (a shallow body, measured no slower to compile than
+    LLVM inlining); keep deeper chains out. A loop that is also called on its
+    own is better called as the kernel it is: its callers then reuse its numba
+    typing and IR (the spline's piece kernels call the whole-table loops so: their
+    parallel copies compile in 1.0-1.9 s where inlining took 2.3-3.3 s, and run as fast).
     """
     return _njit(fn, inline="always")
 

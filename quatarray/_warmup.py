@@ -70,12 +70,15 @@ def _samples(dtype, n=8, k=6):
     su2[:, 1, 0], su2[:, 1, 1] = -y + 1j * z, w - 1j * x
     times = np.cumsum(rng.uniform(0.5, 1.5, k))
     new_t = np.linspace(times[0], times[-1], 2 * k)
+    from .splines import PIECES_MIN_KEYS as many  # the spline's piece kernels take this many keys
+
     return SimpleNamespace(
         dtype=d, p=p, q=q, v=rng.standard_normal((n, 3)).astype(d), t=rng.random(n).astype(d),
         s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), rv=rng.standard_normal((n, 3)).astype(d),
         axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
         eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
         keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t), far=far,
+        many_keys=unit(many), many_times=np.arange(float(many)), many_new=np.linspace(0.0, many - 1.0, 2 * many),
         far_m=np.concatenate([m[:1] * big, m[1:]]).astype(d),
     )
 
@@ -159,9 +162,13 @@ def _interpolate(qa, s):
 
 
 def _spline(method, new, order=0):
+    """`new`: "new_sorted", "new_unsorted" or "many" (sorted new times over enough keys
+    for the piece kernels, :data:`quatarray.splines.PIECES_MIN_KEYS`)."""
     def run(qa, s):
-        for times in (s.times, s.times.astype(s.dtype)):
-            qa.spline(times, s.keys, getattr(s, new).astype(times.dtype), method=method, order=order)
+        keys, times, new_t = (s.many_keys, s.many_times, s.many_new) if new == "many" else (
+            s.keys, s.times, getattr(s, new))
+        for t in (times, times.astype(s.dtype)):
+            qa.spline(t, keys, new_t.astype(t.dtype), method=method, order=order)
 
     return run
 
@@ -247,6 +254,7 @@ TABLE = {
     "spline[nlerp, unsorted]": _spline("nlerp", "new_unsorted"),
     "spline[squad]": _spline("squad", "new_sorted"),
     "spline[squad, unsorted]": _spline("squad", "new_unsorted"),
+    **{f"spline[{m}, many keys]": _spline(m, "many") for m in ("bezier", "slerp", "nlerp", "squad")},
     "spline[cubic]": _spline("cubic", "new_sorted"),
     "spline[cubic, unsorted]": _spline("cubic", "new_unsorted"),
     # the rate loops serve sorted and unsorted new times alike

@@ -784,11 +784,13 @@ _METHODS = {
 }
 TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
 # each table method's compiled loops: the evaluation loop, the table, and both in pieces
+# (the piece kernel calls the serial whole-table loops, which a first call on fewer
+# keys has typed and compiled already: inlining them ran numba's front end again)
 _EVALS = {name: _eval_of(f"_{name}", m.run, m.start, m.flush, m.cap) for name, m in TABLED.items()}
 _SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in TABLED.items()}
 _PIECES = {
-    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=ir_inline(specialise(_EVALS[name].py_func, "_piece")),
-                                     _segments_1=ir_inline(specialise(_SEGMENTS[name].py_func, "_piece"))))
+    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=_EVALS[name].serial,
+                                     _segments_1=_SEGMENTS[name].serial))
     for name, m in TABLED.items()
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table

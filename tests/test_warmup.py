@@ -83,6 +83,20 @@ def test_table_covers_every_public_function():
     assert not missing, f"add a line to quatarray._warmup.TABLE for {missing}"
 
 
+def test_table_reaches_the_spline_piece_kernels(monkeypatch):
+    """Sorted new times over many keys take other kernels (the pieces): the table's
+    "many keys" entries reach them, for each method that has them."""
+    from quatarray import splines
+
+    seen = []
+    for method in splines._PIECES:
+        monkeypatch.setitem(splines._PIECES, method, lambda *a, m=method: seen.append(m))
+    s = _warmup._samples("float64")
+    for method in splines._PIECES:
+        _warmup.TABLE[f"spline[{method}, many keys]"](qa, s)
+    assert seen == [m for m in splines._PIECES for _ in range(2)]  # float64 and float32 times
+
+
 def test_bad_arguments():
     with pytest.raises(ValueError, match="dtype"):
         qa.warmup(dtype="float16")
