@@ -60,6 +60,45 @@ def test_first_call(name, dtype):
     assert cpu <= MARGIN * TARGET.get(name, 3.0)
 
 
+# The transform classes' entries of the table call every method in one process;
+# here each public method's first call alone, as a user meets it (the class made
+# beforehand, except for the constructor's own line).
+_METHOD_CALL = """
+import json, sys, time, warnings
+import quatarray as qa
+from quatarray import _jit, _warmup
+s = _warmup._samples(sys.argv[3])
+_jit.PARALLEL_MIN_ROWS = sys.maxsize
+warnings.simplefilter("ignore")
+make = {"VQS": _warmup._vqs, "VQM": _warmup._vqm}[sys.argv[1]]
+t = None if sys.argv[2] == "constructor" else make(qa, s)
+m = t.as_matrix() if sys.argv[2] == "from_matrix" else None
+calls = {
+    "constructor": lambda: make(qa, s),
+    "apply": lambda: t.apply(s.v),
+    "compose (@)": lambda: t @ t,
+    "inverse": lambda: t.inverse(),
+    "as_matrix": lambda: t.as_matrix(),
+    "from_matrix": lambda: type(t).from_matrix(m),
+    "identity": lambda: getattr(qa, sys.argv[1]).identity(3, dtype=s.dtype),
+    "interpolate": lambda: qa.interpolate(t, t, s.t),
+}
+c = time.process_time()
+calls[sys.argv[2]]()
+print(json.dumps(time.process_time() - c))
+"""
+METHODS = ["constructor", "apply", "compose (@)", "inverse", "as_matrix", "from_matrix", "identity", "interpolate"]
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("cls", ["VQS", "VQM"])
+def test_first_call_of_a_transform_method(cls, method, dtype):
+    cpu = json.loads(_cold("-c", _METHOD_CALL, cls, method, dtype).stdout.splitlines()[-1])
+    print(f"\n{cls}.{method:12s} {dtype}: first call {cpu:5.2f} s CPU")
+    assert cpu <= MARGIN * 3.0
+
+
 # The 16 common first calls of issue 13, one after another in one process (kernels
 # that several of them share compile once): target 15 s CPU together.
 _SIXTEEN = """
