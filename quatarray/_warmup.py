@@ -362,6 +362,11 @@ class Summary(NamedTuple):
         return "\n".join(lines)
 
 
+def _start_worker(env, stdout, stderr):
+    return subprocess.Popen([sys.executable, "-c", "from quatarray._warmup import _worker; _worker()"],
+                            stdin=subprocess.PIPE, stdout=stdout, stderr=stderr, text=True, env=env)
+
+
 def _jobs(dtypes, names):
     order = [n for n in names if n.startswith("spline")] + [n for n in names if not n.startswith("spline")]
     return [(n, d, v) for n in order for d in dtypes for v in VARIANTS]
@@ -442,10 +447,7 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
 
     def drive(env):
         log = tempfile.TemporaryFile("w+")  # not a pipe: nobody reads it until the end
-        proc = subprocess.Popen(
-            [sys.executable, "-c", "from quatarray._warmup import _worker; _worker()"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True, env=env,
-        )
+        proc = _start_worker(env, subprocess.PIPE, log)
         try:
             while (job := next_job()) is not None:
                 proc.stdin.write(json.dumps(job) + "\n")
@@ -480,3 +482,50 @@ def warmup(dtype="all", processes=None, verbose=False, names=None):
     if errors:
         raise errors[0]
     return Summary(sorted(done, key=lambda j: -j.seconds), time.perf_counter() - t0, processes)
+
+
+def in_background(names, dtype="float64", variants=VARIANTS):
+    """Compile the table entries `names` into the cache in one worker process that
+    runs beside the caller, which goes on meanwhile; returns the process (None
+    where cache writes cannot be locked: no ``fcntl``).
+
+    For a program that knows which kernels it will need later (``quatarray
+    demo``'s throughput section): they compile on another core while it works,
+    and its later first calls load them from the cache (or, if it gets there
+    first, compile them itself, as without this). From now on this process's
+    own cache writes hold the worker's lock, since numba's cache index is not
+    safe against two writers.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Entries of :data:`TABLE`.
+    dtype : {"float64", "float32", "all"}, optional
+    variants : tuple of str, optional
+        Row-loop variants, of ``("serial", "parallel")`` (default both).
+
+    Examples
+    --------
+    >>> from quatarray import _warmup
+    >>> proc = _warmup.in_background(["multiply"], dtype="float32", variants=("serial",))
+    >>> proc.wait()
+    0
+    """
+    names = list(names)
+    unknown = [n for n in names if n not in TABLE] + [v for v in variants if v not in VARIANTS]
+    if unknown or dtype not in DTYPES:
+        raise ValueError(f"Expected `names` from quatarray._warmup.TABLE, `variants` from {VARIANTS} and "
+                         f"`dtype` from {sorted(DTYPES)}, got {unknown[0] if unknown else dtype!r}.")
+    if not _CAN_LOCK:
+        return None
+    from numba.core.caching import IndexDataCacheFile
+
+    from . import _jit
+
+    lock = (getattr(IndexDataCacheFile.save, "lock_path", None) or os.environ.get(_LOCK_ENV)
+            or os.path.join(tempfile.gettempdir(), "quatarray-cache.lock"))
+    _jit.lock_cache_writes(lock)
+    proc = _start_worker(_env(lock), subprocess.DEVNULL, subprocess.DEVNULL)
+    proc.stdin.write("".join(json.dumps([n, d, v]) + "\n" for n in names for d in DTYPES[dtype] for v in variants))
+    proc.stdin.close()
+    return proc

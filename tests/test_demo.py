@@ -87,6 +87,30 @@ def test_demo_default_folder_is_new(tmp_path, monkeypatch):
     assert not any((tmp_path / "quatarray-demo").iterdir())
 
 
+def test_demo_compiles_its_long_stream_kernels_ahead(tmp_path, monkeypatch):
+    """With a long stream of many keys, the demo starts a worker on the table entries
+    of the kernels that section takes (serial loops: 16 385 samples) and waits for it
+    before timing."""
+    from quatarray import _warmup
+    from quatarray.splines import PIECES_MIN_KEYS
+
+    asked = []
+
+    class Worker:
+        def wait(self):
+            asked.append("wait")
+            return 0
+
+    monkeypatch.setattr(_warmup, "in_background", lambda names, **kw: asked.append((names, kw)) or Worker())
+    assert demo.run(out_dir=str(tmp_path), long_keys=PIECES_MIN_KEYS, stream=_io.StringIO()) == 0
+    names = ["spline[bezier, many keys]", "spline[slerp, many keys]"]
+    assert asked == [(names, {"variants": ("serial",)}), "wait"]
+    assert all(n in _warmup.TABLE for n in names)
+    asked.clear()
+    demo.run(out_dir=str(tmp_path), long_keys=PIECES_MIN_KEYS - 1, stream=_io.StringIO())
+    assert asked == []  # the whole-table kernels of steps 1-5: nothing to compile ahead
+
+
 def _stream_csv(path, n=200):
     t = np.arange(n) / 50.0
     q = qa.from_rotvec(np.column_stack([np.sin(t), 0.5 * t, np.cos(2 * t)]))

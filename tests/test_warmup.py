@@ -135,6 +135,37 @@ def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     assert res["first"]["start-up"] < 3.0
 
 
+def test_in_background_fills_the_cache_beside_the_caller(tmp_path):
+    """A worker started by in_background compiles its entries into the cache while
+    the caller goes on; the caller's own cache writes take the worker's lock; a new
+    process then loads those kernels without compiling."""
+    env = _env(tmp_path / "cache")
+    env.pop("QUATARRAY_CACHE_LOCK", None)
+    start = ("import json, quatarray as qa\n"
+             "from quatarray import _warmup\n"
+             "from numba.core.caching import IndexDataCacheFile as I\n"
+             "p = _warmup.in_background(['multiply'], dtype='float32', variants=('serial',))\n"
+             "qa.normalize(qa.random(3))  # the caller compiles too, meanwhile\n"
+             "print(json.dumps([p.wait(), I.save.lock_path]))\n")
+    out = subprocess.run([sys.executable, "-c", start], env=env, capture_output=True, text=True, check=True)
+    rc, lock = json.loads(out.stdout.splitlines()[-1])
+    assert rc == 0 and lock.endswith(".lock")
+    check = ("import json, quatarray as qa\n"
+             "from quatarray import _jit, _warmup\n"
+             "s = {'float32': _warmup._samples('float32')}\n"
+             "print(json.dumps(_warmup._run_job(qa, _jit, 'multiply', 'float32', 'serial', s)))\n")
+    out = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True, check=True)
+    seconds, compiled, error = json.loads(out.stdout.splitlines()[-1])
+    assert (compiled, error) == (0, "")
+
+
+def test_in_background_bad_arguments():
+    for kw in ({"names": ["no_such_function"]}, {"names": ["multiply"], "variants": ("threads",)},
+               {"names": ["multiply"], "dtype": "float16"}):
+        with pytest.raises(ValueError, match="Expected `names`"):
+            _warmup.in_background(**kw)
+
+
 def test_command_line_verb():
     from quatarray.cli import build_parser, cmd_warmup
 
