@@ -4,7 +4,9 @@ Each public function (every entry of the warm-up table, :data:`quatarray._warmup
 called once on contiguous inputs) and float type runs in a fresh process whose ``NUMBA_CACHE_DIR`` is a new empty
 folder; the time of its first call (compiling every kernel it needs) is measured
 there, as wall time and as the process's CPU time (which the other load of a shared
-machine disturbs less). ``quatarray demo`` is timed the same way, as a whole command.
+machine disturbs less); so is each public method of the transform classes alone (their
+table entries call every method in one process). ``quatarray demo`` is timed the same
+way, as a whole command.
 
 Run ``python -m pytest benchmarks/test_cold.py -s`` for the table; the targets
 (issue 13) are asserted with a margin for a shared machine: a public function's
