@@ -8,33 +8,24 @@ vector, a quaternion and a 3×3 matrix.
                        elements 4i … 4i + 3 of a flat (4n,) array; ``store4(out, i, q)``
 ``load33(a, i)``       matrix i of an (n, 3, 3) array as a row-major 9-tuple;
                        ``store33(out, i, m)``
-``load1_ir`` …         ``load1``, ``load4`` and ``store4`` inlined at numba's typed-IR
-                       level (below)
+``loads(a, j, k)``     elements j … j + k − 1 of a C-contiguous buffer as a k-tuple
+                       (k literal); ``stores(out, j, x)``: a flat table's row
 =====================  ==============================================================
 
-Compiled, a C-contiguous array is addressed as a flat buffer (``_jit.flat_load``
-and ``flat_store``) at a literal stride, without negative-index wraparound, so
-LLVM can bound the addresses and vectorise the row loops; other layouts
-(strided, broadcast) index ``a[i, j]``. The row length must be exactly the
-one named (the front end guarantees it). Without the JIT the plain-Python
-bodies run.
+Compiled, a C-contiguous array is addressed as a flat buffer at a literal
+stride (element ``k*i + c``), without negative-index wraparound, so LLVM can
+bound the addresses and vectorise the row loops (numba addresses ``a[i, c]``
+with the run-time row length ``a.shape[1]``, which keeps it from doing so);
+other layouts (strided, broadcast) are addressed by their strides. The row
+length must be exactly the one named (the front end guarantees it). Without
+the JIT the plain-Python bodies run.
 """
 
-import numpy as np
-
 from numba import types
-from numba.extending import overload
+from numba.core import cgutils
+from numba.extending import lower_builtin, type_callable
 
-from ._jit import CACHE, INLINE_OPTIONS, element, flat_load, flat_rows, flat_store
-
-
-def _flat_vector(a):
-    """True (at compile time) for the 1-D C-contiguous arrays of the flat row loops."""
-    return isinstance(a, types.Array) and a.ndim == 1 and a.layout == "C"
-
-
-def _vector(a):
-    return isinstance(a, types.Array) and a.ndim == 1
+from ._jit import element
 
 
 def load1(a, i):
@@ -73,7 +64,10 @@ def store4(out, i, q):
 
 @element
 def load33(a, i):
-    """Matrix ``a[i]`` of an ``(n, 3, 3)`` array."""
+    """Matrix ``a[i]`` of an ``(n, 3, 3)`` array: numba's indexing, an element
+    function (not a builtin at the literal stride 9, as :func:`store33`): that
+    let LLVM vectorise ``from_matrix(assume_valid=True)``'s loop with its
+    matrices gathered element by element, 1.5× slower than the scalar loop."""
     return (
         a[i, 0, 0], a[i, 0, 1], a[i, 0, 2],
         a[i, 1, 0], a[i, 1, 1], a[i, 1, 2],
@@ -88,161 +82,159 @@ def store33(out, i, m):
     literal stride 9 (as ``store4`` does at stride 4), which lets LLVM
     vectorise the row loop: into a freshly allocated output, whose pages the
     system faults in during the loop, about 20 % faster (N = 2·10⁶); into a
-    warm ``out=`` the same (memory-bound either way). Other layouts index
-    ``out[i, j, k]``.
+    warm ``out=`` the same (memory-bound either way). Other layouts are
+    addressed by their strides.
     """
     out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = m[0], m[1], m[2]
     out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = m[3], m[4], m[5]
     out[i, 2, 0], out[i, 2, 1], out[i, 2, 2] = m[6], m[7], m[8]
 
 
-# ---- scalars: 1-D arrays (LLVM-inlined)
+# ---- compiled: typed and lowered in place (numba's low-level extension API)
+#
+# Each accessor is a builtin of the caller, like ``_jit.like``: its typing is a
+# Python test and its lowering emits the loads or stores into the caller's own
+# LLVM IR. An ``@overload`` or element function here was a whole numba compile
+# for each array type it met (0.02-0.08 s apiece, several in every kernel's
+# first call) for a few instructions that LLVM inlined anyway.
+
+# each accessor: the elements of its rows
+_ROWS = {load1: 1, load3: 3, load4: 4}
+_STORES = {store1: 1, store3: 3, store4: 4, store33: 9}
 
 
-@overload(load1, jit_options=INLINE_OPTIONS)
-def _load1(a, i):
-    if _flat_vector(a):
-        return lambda a, i: flat_load(a, i)
-    return lambda a, i: a[i]
+def _rows_of(a, width):
+    """True (at compile time) for the arrays an accessor of `width` elements per row
+    reads: 1-D (flat rows), (n, width) or, for 9, (n, 3, 3)."""
+    if not isinstance(a, types.Array):
+        return False
+    return a.ndim == 1 or (width in (3, 4) and a.ndim == 2) or (width == 9 and a.ndim == 3)
 
 
-@overload(store1, jit_options=INLINE_OPTIONS)
-def _store1(out, i, x):
-    if _flat_vector(out):
-        return lambda out, i, x: flat_store(out, i, x)
-
-    def impl(out, i, x):
-        out[i] = x
-
-    return impl
-
-
-# ---- vectors: (n, 3) rows
-
-
-@overload(load3, jit_options={"cache": CACHE})
-def _load3(a, i):
-    if flat_rows(a):
-        return lambda a, i: (flat_load(a, 3 * i), flat_load(a, 3 * i + 1), flat_load(a, 3 * i + 2))
-    return load3
+def _pointer(context, builder, aryty, ary, i, c, width):
+    """The address of element c of row i: a C-contiguous buffer at the literal
+    stride `width` (no wraparound, so LLVM can bound the addresses and vectorise
+    the row loops); other layouts (strided, broadcast) by their strides."""
+    i = context.cast(builder, i[0], types.unliteral(i[1]), types.intp)
+    j = builder.add(builder.mul(i, context.get_constant(types.intp, width)), context.get_constant(types.intp, c))
+    if aryty.layout == "C":
+        return builder.gep(ary.data, [j], inbounds=True)
+    if aryty.ndim == 1:
+        index = [j]
+    elif aryty.ndim == 2:
+        index = [i, context.get_constant(types.intp, c)]
+    else:
+        index = [i, context.get_constant(types.intp, c // 3), context.get_constant(types.intp, c % 3)]
+    shape = cgutils.unpack_tuple(builder, ary.shape, aryty.ndim)
+    strides = cgutils.unpack_tuple(builder, ary.strides, aryty.ndim)
+    return cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, aryty.layout, index)
 
 
-@overload(store3, jit_options={"cache": CACHE})
-def _store3(out, i, v):
-    if flat_rows(out):
-
-        def impl(out, i, v):
-            flat_store(out, 3 * i, v[0])
-            flat_store(out, 3 * i + 1, v[1])
-            flat_store(out, 3 * i + 2, v[2])
-
-        return impl
-    return store3
+def _align(aryty):
+    return None if aryty.aligned else 1
 
 
-# ---- quaternions. Two overloads of each name: flat (4n,) arrays (LLVM-inlined,
-# for the interpolation loops) and (n, 4) rows; each answers only its own arrays.
+def _typer_load(width):
+    def typer(a, i):
+        if _rows_of(a, width) and isinstance(i, types.Integer):
+            return a.dtype if width == 1 else types.UniTuple(a.dtype, width)
+
+    return typer
 
 
-@overload(load4, jit_options=INLINE_OPTIONS)
-def _load4_flat(a, i):
-    if _flat_vector(a):
-        # "+ 0" keeps LLVM from folding a select of two loaded values into a
-        # load through a selected pointer, which the vectoriser cannot bound
-        ftype = np.dtype(str(a.dtype)).type  # not like(a, ·): a call with an array stops the vectoriser
+def _lower_load(width):
+    def lower(context, builder, sig, args):
+        aryty, ity = sig.args
+        ary = context.make_array(aryty)(context, builder, args[0])
+        vals = [builder.load(_pointer(context, builder, aryty, ary, (args[1], ity), c, width), align=_align(aryty))
+                for c in range(width)]
+        if width == 4 and aryty.ndim == 1 and aryty.layout == "C":
+            # "+ 0" keeps LLVM from folding a select of two loaded values into a
+            # load through a selected pointer, which the vectoriser cannot bound
+            zero = context.get_constant(aryty.dtype, 0.0)
+            vals = [builder.fadd(v, zero) for v in vals]
+        if width == 1:
+            return vals[0]
+        return context.make_tuple(builder, sig.return_type, vals)
 
-        def impl(a, i):
-            z = ftype(0.0)
-            j = 4 * i
-            return (flat_load(a, j) + z, flat_load(a, j + 1) + z, flat_load(a, j + 2) + z, flat_load(a, j + 3) + z)
-
-        return impl
-    if _vector(a):
-        return lambda a, i: (a[4 * i], a[4 * i + 1], a[4 * i + 2], a[4 * i + 3])
-    return None
-
-
-def _store4_buffer(out, i, q):
-    """Quaternion i into elements 4i … 4i + 3 of a C-contiguous buffer: both layouts."""
-    j = 4 * i
-    flat_store(out, j, q[0])
-    flat_store(out, j + 1, q[1])
-    flat_store(out, j + 2, q[2])
-    flat_store(out, j + 3, q[3])
+    return lower
 
 
-@overload(store4, jit_options=INLINE_OPTIONS)
-def _store4_flat(out, i, q):
-    if _flat_vector(out):
-        return _store4_buffer
-    if _vector(out):
+def _typer_store(width):
+    def typer(out, i, x):
+        fits = isinstance(x, types.Number) if width == 1 else isinstance(x, types.BaseTuple) and len(x) == width
+        if _rows_of(out, width) and out.mutable and isinstance(i, types.Integer) and fits:
+            return types.none
 
-        def strided(out, i, q):
-            out[4 * i], out[4 * i + 1], out[4 * i + 2], out[4 * i + 3] = q
-
-        return strided
-    return None
+    return typer
 
 
-@overload(load4, jit_options={"cache": CACHE})
-def _load4_rows(a, i):
-    if _vector(a):
-        return None
-    if flat_rows(a):
-        return lambda a, i: (
-            flat_load(a, 4 * i), flat_load(a, 4 * i + 1), flat_load(a, 4 * i + 2), flat_load(a, 4 * i + 3)
-        )
-    return lambda a, i: (a[i, 0], a[i, 1], a[i, 2], a[i, 3])
+def _lower_store(width):
+    def lower(context, builder, sig, args):
+        aryty, ity, xty = sig.args
+        ary = context.make_array(aryty)(context, builder, args[0])
+        for c in range(width):
+            x, t = (args[2], xty) if width == 1 else (builder.extract_value(args[2], c), xty.types[c])
+            v = context.cast(builder, x, types.unliteral(t), aryty.dtype)
+            builder.store(v, _pointer(context, builder, aryty, ary, (args[1], ity), c, width), align=_align(aryty))
+        return context.get_dummy_value()
+
+    return lower
 
 
-@overload(store4, jit_options={"cache": CACHE})
-def _store4_rows(out, i, q):
-    if _vector(out):
-        return None
-    if flat_rows(out):
-        return _store4_buffer
-
-    def rows(out, i, q):
-        out[i, 0] = q[0]
-        out[i, 1] = q[1]
-        out[i, 2] = q[2]
-        out[i, 3] = q[3]
-
-    return rows
+def loads(a, j, k):
+    """Elements j … j + k − 1 of a C-contiguous array's buffer, as a k-tuple (k a
+    literal integer): a row of a flat table such as the spline's segment rows."""
+    return tuple(a.reshape(-1)[j : j + k])
 
 
-# ---- 3×3 matrices
+def stores(out, j, x):
+    """The tuple x into elements j … j + len(x) − 1 of a C-contiguous array's buffer."""
+    out.reshape(-1)[j : j + len(x)] = x
 
 
-@overload(store33, jit_options={"cache": CACHE})
-def _store33(out, i, m):
-    if isinstance(out, types.Array) and out.ndim == 3 and out.layout == "C" and out.aligned:
+@type_callable(loads)
+def _type_loads(context):
+    def typer(a, j, k):
+        if isinstance(a, types.Array) and a.layout == "C" and isinstance(k, types.IntegerLiteral):
+            return types.UniTuple(a.dtype, k.literal_value)
 
-        def impl(out, i, m):
-            for c in range(9):  # a constant trip count: LLVM unrolls it into nine stores
-                flat_store(out, 9 * i + c, m[c])
-
-        return impl
-    return store33
+    return typer
 
 
-# ---- the same accessors inlined at numba's typed-IR level, for loops that LLVM
-# does not vectorise through the LLVM-inlined ones (the Bézier controls: 10
-# packed instructions instead of 761). Typed-IR inlining costs compile time per
-# call site, so only there. Flat 1-D arrays only.
+@lower_builtin(loads, types.Array, types.Integer, types.IntegerLiteral)
+def _lower_loads(context, builder, sig, args):
+    aryty, ity, kty = sig.args
+    ary = context.make_array(aryty)(context, builder, args[0])
+    vals = [builder.load(_pointer(context, builder, aryty, ary, (args[1], ity), c, 1), align=_align(aryty))
+            for c in range(kty.literal_value)]
+    return context.make_tuple(builder, sig.return_type, vals)
 
 
-def load1_ir(a, i):
-    return a[i]
+@type_callable(stores)
+def _type_stores(context):
+    def typer(out, j, x):
+        if isinstance(out, types.Array) and out.layout == "C" and out.mutable and isinstance(x, types.BaseTuple):
+            return types.none
+
+    return typer
 
 
-def load4_ir(a, i):
-    return (a[4 * i], a[4 * i + 1], a[4 * i + 2], a[4 * i + 3])
+@lower_builtin(stores, types.Array, types.Integer, types.BaseTuple)
+def _lower_stores(context, builder, sig, args):
+    aryty, ity, xty = sig.args
+    ary = context.make_array(aryty)(context, builder, args[0])
+    for c in range(len(xty)):
+        v = context.cast(builder, builder.extract_value(args[2], c), types.unliteral(xty.types[c]), aryty.dtype)
+        builder.store(v, _pointer(context, builder, aryty, ary, (args[1], ity), c, 1), align=_align(aryty))
+    return context.get_dummy_value()
 
 
-def store4_ir(out, i, q):
-    out[4 * i], out[4 * i + 1], out[4 * i + 2], out[4 * i + 3] = q
+for _fn, _width in _ROWS.items():
+    type_callable(_fn)(lambda context, w=_width: _typer_load(w))
+    lower_builtin(_fn, types.Array, types.Integer)(_lower_load(_width))
+for _fn, _width in _STORES.items():
+    type_callable(_fn)(lambda context, w=_width: _typer_store(w))
+    lower_builtin(_fn, types.Array, types.Integer, types.Any)(_lower_store(_width))
 
 
-for _stub, _impl in ((load1_ir, _load1), (load4_ir, _load4_flat), (store4_ir, _store4_flat)):
-    overload(_stub, inline="always", jit_options={"cache": CACHE})(_impl)

@@ -75,12 +75,6 @@ Kernel layers
     for floats at least lo, how many floats x lies above it; below lo it
     wraps to large values. A range test of a float as one integer subtraction,
     whose ``max`` over a loop stays two SIMD instructions (``_elements.far_excess``).
-``flat_rows(a)``, ``flat_load``, ``flat_store``
-    Row access at a compile-time constant stride for C-contiguous ``(n, k)``
-    arrays (used by ``_elements.load4`` & co.). numba addresses ``a[i, j]``
-    with the run-time row length ``a.shape[1]``, which keeps LLVM from
-    vectorising the row loops; ``a.data[k*i + j]`` with a literal ``k`` lets
-    it load and store whole SIMD registers (float32 gains the most).
 """
 
 import contextlib
@@ -593,36 +587,6 @@ def _lower_fmuladd(context, builder, sig, args):
     name = "llvm.fmuladd.f32" if sig.return_type.bitwidth == 32 else "llvm.fmuladd.f64"
     fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ty, [ty, ty, ty]), name)
     return builder.call(fn, args)
-
-
-def flat_rows(a):
-    """True (at compile time) for arrays whose rows ``flat_load`` may address."""
-    return isinstance(a, types.Array) and a.ndim == 2 and a.layout == "C" and a.aligned
-
-
-@intrinsic
-def flat_load(typingctx, a, j):
-    """``a.data[j]``: element ``j`` of a C-contiguous array's buffer (no checks)."""
-    sig = a.dtype(a, j)
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        return builder.load(builder.gep(ary.data, [args[1]], inbounds=True))
-
-    return sig, codegen
-
-
-@intrinsic
-def flat_store(typingctx, a, j, v):
-    """``a.data[j] = v`` for a C-contiguous array (no checks)."""
-    sig = types.void(a, j, a.dtype)
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        builder.store(args[2], builder.gep(ary.data, [args[1]], inbounds=True))
-        return context.get_dummy_value()
-
-    return sig, codegen
 
 
 # LLVM's tuning flags that keep its vectoriser and code generator from gathers and

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load1, load1_ir, load4, load4_ir, store4, store4_ir
+from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
 from ._slerp import arc, bezier4, bisect4, controls4, double4, lerp4, nlerp4, slerp4, squad4
 from ._trig import sincos
@@ -147,9 +147,9 @@ def _bezier_controls(q, f_out, f_in, a, b):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for j in range(min(n - lo, ROWS)):
             i = lo + j
-            r = controls4(load4_ir(q, i), load4_ir(q, i + 1), load4_ir(q, i + 2), load1_ir(f_out, i), load1_ir(f_in, i))
-            store4_ir(a, i, r[0])
-            store4_ir(b, i, r[1])
+            r = controls4(load4(q, i), load4(q, i + 1), load4(q, i + 2), load1(f_out, i), load1(f_in, i))
+            store4(a, i, r[0])
+            store4(b, i, r[1])
 
 
 def _double_row(p, q):

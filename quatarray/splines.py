@@ -53,7 +53,7 @@ import numpy as np
 
 from . import _cubic
 from . import _elements as E
-from ._access import load1, load4, store1, store4
+from ._access import load1, load4, loads, store1, store4, stores
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
 from ._rates import vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
@@ -117,17 +117,10 @@ def sign_summary(q, rows, ends, negated, unit, dots):
 
 
 @inline
-def put(seg, n, c, q):
-    """Table row n, columns c … c + 3: the quaternion q."""
-    seg[n, c], seg[n, c + 1], seg[n, c + 2], seg[n, c + 3] = q
-
-
-@inline
 def put_arc(seg, n, c, p, q):
     """Table row n, columns c … c + 4: (θ, v) of the fixed arc from p to q (:func:`arc`)."""
     th, v, sgn = arc(p, q, like(p[0], 0.0))
-    seg[n, c] = th
-    put(seg, n, c + 1, v)
+    stores(seg, NSEG * n + c, (th, v[0], v[1], v[2], v[3]))
 
 
 KIND = 1  # rebound in each method's copy of _segments (see _SEGMENTS)
@@ -145,10 +138,10 @@ def _segments(q, c_out, c_in, seg):
         r = load4(q, n + 1)
         a = load4(c_out, n)
         b = load4(c_in, n + 1)
-        put(seg, n, 0, p)
-        put(seg, n, 4, a)
-        put(seg, n, 8, b)
-        put(seg, n, 12, r)
+        stores(seg, NSEG * n, p)
+        stores(seg, NSEG * n + 4, a)
+        stores(seg, NSEG * n + 8, b)
+        stores(seg, NSEG * n + 12, r)
         if KIND == 1:
             put_arc(seg, n, 16, p, a)
             put_arc(seg, n, 21, a, b)
@@ -196,19 +189,10 @@ def next_run(times, new_t, j, hi, n):
 
 
 @inline
-def seg_arc(seg, n, c):
-    return seg[n + c], seg[n + c + 1], seg[n + c + 2], seg[n + c + 3], seg[n + c + 4]
-
-
-@inline
-def seg_q(seg, n, c):
-    return seg[n + c], seg[n + c + 1], seg[n + c + 2], seg[n + c + 3]
-
-
-@inline
 def seg_keys(seg, n):
-    """The four quaternions of a table row: q_n, its two controls, q_{n+1}."""
-    return seg_q(seg, n, 0), seg_q(seg, n, 4), seg_q(seg, n, 8), seg_q(seg, n, 12)
+    """The four quaternions of a table row (starting at flat element n): q_n, its two
+    controls, q_{n+1}. A fixed arc of the row is ``loads(seg, n + c, 5)``, (θ, v) at column c."""
+    return loads(seg, n, 4), loads(seg, n + 4, 4), loads(seg, n + 8, 4), loads(seg, n + 12, 4)
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
@@ -278,9 +262,9 @@ def _segment(times, seg, sg):
 @ir_inline
 def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
-    p = seg_q(seg, n, 0)
-    q = seg_q(seg, n, 12)
-    c = seg_arc(seg, n, 16)
+    p = loads(seg, n, 4)
+    q = loads(seg, n + 12, 4)
+    c = loads(seg, n + 16, 5)
     for i in range(j, e):
         store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
     return e, count
@@ -289,8 +273,8 @@ def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
 @ir_inline
 def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
-    p = seg_q(seg, n, 0)
-    q = seg_q(seg, n, 12)
+    p = loads(seg, n, 4)
+    q = loads(seg, n + 12, 4)
     for i in range(j, e):
         t = like(x0, (load1(new_t, i) - t0) / h)
         store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
@@ -301,8 +285,8 @@ def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
 def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     q0, s0, s1, q1 = seg_keys(seg, n)
-    c0 = seg_arc(seg, n, 16)
-    c1 = seg_arc(seg, n, 21)
+    c0 = loads(seg, n + 16, 5)
+    c1 = loads(seg, n + 21, 5)
     for i in range(j, e):
         t = like(x0, (load1(new_t, i) - t0) / h)
         pq = arc_slerp(q0, q1, c0, t)
@@ -417,7 +401,7 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
 @inline
 def _arc_rate(seg, n, c, p):
     """The constant body rate per unit u of the fixed arc at column c of a table row."""
-    a = seg_arc(seg, n, c)
+    a = loads(seg, n + c, 5)
     return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
 
 
@@ -454,8 +438,8 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             if ORDER == 2:
                 v = vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
         if KIND == 2:
-            pq = arc_slerp(q0, q1, seg_arc(seg, n, 16), u)
-            ps = arc_slerp(a, b, seg_arc(seg, n, 21), u)
+            pq = arc_slerp(q0, q1, loads(seg, n + 16, 5), u)
+            ps = arc_slerp(a, b, loads(seg, n + 21, 5), u)
             w = like(x0, 2.0) * u * (one - u)
             dw = like(x0, 2.0) - like(x0, 4.0) * u
             if ORDER == 1:
@@ -463,9 +447,9 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             else:
                 v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
         if KIND == 1:
-            p01 = arc_slerp(q0, a, seg_arc(seg, n, 16), u)
-            p12 = arc_slerp(a, b, seg_arc(seg, n, 21), u)
-            p23 = arc_slerp(b, q1, seg_arc(seg, n, 26), u)
+            p01 = arc_slerp(q0, a, loads(seg, n + 16, 5), u)
+            p12 = arc_slerp(a, b, loads(seg, n + 21, 5), u)
+            p23 = arc_slerp(b, q1, loads(seg, n + 26, 5), u)
             if ORDER == 1:
                 s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
                 s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
