@@ -12,12 +12,12 @@ import math
 import numpy as np
 
 from numba import types
-from numba.extending import overload
+from numba.extending import lower_builtin, overload, type_callable
 
 from ._access import load3, load4, store3, store4  # noqa: F401  (row access, importable from here too)
 from ._jit import (
-    CACHE, INLINE_OPTIONS, RowLoop, bit_distance, element, exponent_scales, inline, ir_inline, like, prange, rowloop,
-    prefer_no_gather, specialise,
+    CACHE, RowLoop, bit_distance, bits_type, element, exponent_scales, inline, ir_inline, like,
+    lower_bit_distance, prange, prefer_no_gather, specialise,
 )
 from ._trig import atan2
 
@@ -126,25 +126,42 @@ def _limits(bits):
     return lo, bit_distance(t(1.0), lo), bit_distance(hi, lo)
 
 
-@overload(far_excess, jit_options=INLINE_OPTIONS)
-def _far_excess(n2):
-    if isinstance(n2, types.Float):
-        lo = _limits(n2.bitwidth)[0]
-        return lambda n2: bit_distance(n2, lo)
+# far_excess, far_start and far_any are builtins (typed and lowered in place, as
+# ``_jit.like``): as overloads each was a numba compile per type in every process.
+@type_callable(far_excess)
+def _type_far_excess(context):
+    return lambda n2: bits_type(n2) if isinstance(n2, types.Float) else None
 
 
-@overload(far_start, jit_options=INLINE_OPTIONS)
-def _far_start(a):
-    if isinstance(a, types.Array) and isinstance(a.dtype, types.Float):
-        start = _limits(a.dtype.bitwidth)[1]
-        return lambda a: start
+@lower_builtin(far_excess, types.Float)
+def _lower_far_excess(context, builder, sig, args):
+    t = sig.args[0]
+    return lower_bit_distance(builder, args[0], context.get_constant(t, _limits(t.bitwidth)[0]), t.bitwidth)
 
 
-@overload(far_any, jit_options=INLINE_OPTIONS)
-def _far_any(m):
-    if isinstance(m, types.Integer) and not m.signed:
-        limit = _limits(m.bitwidth)[2]
-        return lambda m: m > limit
+@type_callable(far_start)
+def _type_far_start(context):
+    def typer(a):
+        if isinstance(a, types.Array) and isinstance(a.dtype, types.Float):
+            return bits_type(a.dtype)
+
+    return typer
+
+
+@lower_builtin(far_start, types.Array)
+def _lower_far_start(context, builder, sig, args):
+    return context.get_constant(sig.return_type, int(_limits(sig.args[0].dtype.bitwidth)[1]))
+
+
+@type_callable(far_any)
+def _type_far_any(context):
+    return lambda m: types.boolean if isinstance(m, types.Integer) and not m.signed else None
+
+
+@lower_builtin(far_any, types.Integer)
+def _lower_far_any(context, builder, sig, args):
+    limit = context.get_constant(sig.args[0], int(_limits(sig.args[0].bitwidth)[2]))
+    return builder.icmp_unsigned(">", args[0], limit)
 
 
 FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit

@@ -94,7 +94,7 @@ from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.core.registry import CPUDispatcher
-from numba.extending import intrinsic, lower_builtin, overload, type_callable
+from numba.extending import lower_builtin, type_callable
 
 
 def _defer_blas_probe():
@@ -648,30 +648,28 @@ def exponent_scales(m):
     return np.ldexp(t(1.0), 2 - e), np.ldexp(t(1.0), e - 1)
 
 
-@intrinsic
-def _exponent_scales(typingctx, m):
-    if not isinstance(m, types.Float):
-        return None
-    sig = types.UniTuple(m, 2)(m)
+# exponent_scales and bit_distance are builtins (typed and lowered in place, as
+# ``like``): an overload was a numba compile per float type in every process.
+@type_callable(exponent_scales)
+def _type_exponent_scales(context):
+    def typer(m):
+        if isinstance(m, types.Float):
+            return types.UniTuple(m, 2)
 
-    def codegen(context, builder, sig, args):
-        bits = sig.args[0].bitwidth
-        mant = 52 if bits == 64 else 23
-        ity = ir.IntType(bits)
-        fty = context.get_value_type(sig.args[0])
-        mask = ir.Constant(ity, ((1 << (bits - 1 - mant)) - 1) << mant)  # the exponent field
-        e = builder.and_(builder.bitcast(args[0], ity), mask)
-        r = builder.bitcast(builder.sub(mask, e), fty)  # exponent field 2·bias + 1 - e: 2^(1-E)
-        c = builder.bitcast(e, fty)  # 2^E
-        return context.make_tuple(builder, sig.return_type, [r, c])
-
-    return sig, codegen
+    return typer
 
 
-@overload(exponent_scales, jit_options={"cache": CACHE})
-def _exponent_scales_ov(m):
-    if isinstance(m, types.Float):
-        return lambda m: _exponent_scales(m)
+@lower_builtin(exponent_scales, types.Float)
+def _lower_exponent_scales(context, builder, sig, args):
+    bits = sig.args[0].bitwidth
+    mant = 52 if bits == 64 else 23
+    ity = ir.IntType(bits)
+    fty = context.get_value_type(sig.args[0])
+    mask = ir.Constant(ity, ((1 << (bits - 1 - mant)) - 1) << mant)  # the exponent field
+    e = builder.and_(builder.bitcast(args[0], ity), mask)
+    r = builder.bitcast(builder.sub(mask, e), fty)  # exponent field 2·bias + 1 - e: 2^(1-E)
+    c = builder.bitcast(e, fty)  # 2^E
+    return context.make_tuple(builder, sig.return_type, [r, c])
 
 
 def bit_distance(x, lo):
@@ -687,20 +685,26 @@ def bit_distance(x, lo):
     return u((bits[0] - bits[1]) % (1 << w))
 
 
-@intrinsic
-def _bit_distance(typingctx, x, lo):
-    if not (isinstance(x, types.Float) and x == lo):
-        return None
-    sig = (types.uint32 if x.bitwidth == 32 else types.uint64)(x, lo)
-
-    def codegen(context, builder, sig, args):
-        ity = ir.IntType(sig.args[0].bitwidth)
-        return builder.sub(builder.bitcast(args[0], ity), builder.bitcast(args[1], ity))
-
-    return sig, codegen
+def bits_type(x):
+    """The unsigned integer type of :func:`bit_distance` of floats of numba type `x`."""
+    return types.uint32 if x.bitwidth == 32 else types.uint64
 
 
-@overload(bit_distance, jit_options=INLINE_OPTIONS)
-def _bit_distance_ov(x, lo):
-    if isinstance(x, types.Float) and x == lo:
-        return lambda x, lo: _bit_distance(x, lo)
+def lower_bit_distance(builder, x, lo, bits):
+    """:func:`bit_distance` of the LLVM floats `x` and `lo` of `bits` bits."""
+    ity = ir.IntType(bits)
+    return builder.sub(builder.bitcast(x, ity), builder.bitcast(lo, ity))
+
+
+@type_callable(bit_distance)
+def _type_bit_distance(context):
+    def typer(x, lo):
+        if isinstance(x, types.Float) and x == lo:
+            return bits_type(x)
+
+    return typer
+
+
+@lower_builtin(bit_distance, types.Float, types.Float)
+def _lower_bit_distance(context, builder, sig, args):
+    return lower_bit_distance(builder, args[0], args[1], sig.args[0].bitwidth)
