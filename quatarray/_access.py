@@ -134,6 +134,28 @@ def _align(aryty):
     return None if aryty.aligned else 1
 
 
+def _load_run(context, builder, aryty, a, i, width, count):
+    """The LLVM values of elements 0 … count − 1 of row i (a value and its type) of
+    `width` elements of the array `a` of type `aryty`."""
+    ary = context.make_array(aryty)(context, builder, a)
+    return [builder.load(_pointer(context, builder, aryty, ary, i, c, width), align=_align(aryty))
+            for c in range(count)]
+
+
+def _store_run(context, builder, aryty, a, i, width, values):
+    """Store `values` (LLVM values and their types) into elements 0, 1, … of row i
+    of `width` elements of the array `a` of type `aryty`, cast to its dtype."""
+    ary = context.make_array(aryty)(context, builder, a)
+    for c, (x, t) in enumerate(values):
+        v = context.cast(builder, x, types.unliteral(t), aryty.dtype)
+        builder.store(v, _pointer(context, builder, aryty, ary, i, c, width), align=_align(aryty))
+    return context.get_dummy_value()
+
+
+def _tuple_items(builder, x, xty):
+    return [(builder.extract_value(x, c), xty.types[c]) for c in range(len(xty))]
+
+
 def _typer_load(width):
     def typer(a, i):
         if _rows_of(a, width) and isinstance(i, types.Integer):
@@ -144,10 +166,8 @@ def _typer_load(width):
 
 def _lower_load(width):
     def lower(context, builder, sig, args):
-        aryty, ity = sig.args
-        ary = context.make_array(aryty)(context, builder, args[0])
-        vals = [builder.load(_pointer(context, builder, aryty, ary, (args[1], ity), c, width), align=_align(aryty))
-                for c in range(width)]
+        aryty = sig.args[0]
+        vals = _load_run(context, builder, aryty, args[0], (args[1], sig.args[1]), width, width)
         if width == 4 and aryty.ndim == 1 and aryty.layout == "C":
             # "+ 0" keeps LLVM from folding a select of two loaded values into a
             # load through a selected pointer, which the vectoriser cannot bound
@@ -172,12 +192,8 @@ def _typer_store(width):
 def _lower_store(width):
     def lower(context, builder, sig, args):
         aryty, ity, xty = sig.args
-        ary = context.make_array(aryty)(context, builder, args[0])
-        for c in range(width):
-            x, t = (args[2], xty) if width == 1 else (builder.extract_value(args[2], c), xty.types[c])
-            v = context.cast(builder, x, types.unliteral(t), aryty.dtype)
-            builder.store(v, _pointer(context, builder, aryty, ary, (args[1], ity), c, width), align=_align(aryty))
-        return context.get_dummy_value()
+        values = [(args[2], xty)] if width == 1 else _tuple_items(builder, args[2], xty)
+        return _store_run(context, builder, aryty, args[0], (args[1], ity), width, values)
 
     return lower
 
@@ -196,7 +212,8 @@ def stores(out, j, x):
 @type_callable(loads)
 def _type_loads(context):
     def typer(a, j, k):
-        if isinstance(a, types.Array) and a.layout == "C" and isinstance(k, types.IntegerLiteral):
+        if (isinstance(a, types.Array) and a.layout == "C" and isinstance(j, types.Integer)
+                and isinstance(k, types.IntegerLiteral)):
             return types.UniTuple(a.dtype, k.literal_value)
 
     return typer
@@ -205,16 +222,15 @@ def _type_loads(context):
 @lower_builtin(loads, types.Array, types.Integer, types.IntegerLiteral)
 def _lower_loads(context, builder, sig, args):
     aryty, ity, kty = sig.args
-    ary = context.make_array(aryty)(context, builder, args[0])
-    vals = [builder.load(_pointer(context, builder, aryty, ary, (args[1], ity), c, 1), align=_align(aryty))
-            for c in range(kty.literal_value)]
+    vals = _load_run(context, builder, aryty, args[0], (args[1], ity), 1, kty.literal_value)
     return context.make_tuple(builder, sig.return_type, vals)
 
 
 @type_callable(stores)
 def _type_stores(context):
     def typer(out, j, x):
-        if isinstance(out, types.Array) and out.layout == "C" and out.mutable and isinstance(x, types.BaseTuple):
+        if (isinstance(out, types.Array) and out.layout == "C" and out.mutable and isinstance(j, types.Integer)
+                and isinstance(x, types.BaseTuple)):
             return types.none
 
     return typer
@@ -223,11 +239,7 @@ def _type_stores(context):
 @lower_builtin(stores, types.Array, types.Integer, types.BaseTuple)
 def _lower_stores(context, builder, sig, args):
     aryty, ity, xty = sig.args
-    ary = context.make_array(aryty)(context, builder, args[0])
-    for c in range(len(xty)):
-        v = context.cast(builder, builder.extract_value(args[2], c), types.unliteral(xty.types[c]), aryty.dtype)
-        builder.store(v, _pointer(context, builder, aryty, ary, (args[1], ity), c, 1), align=_align(aryty))
-    return context.get_dummy_value()
+    return _store_run(context, builder, aryty, args[0], (args[1], ity), 1, _tuple_items(builder, args[2], xty))
 
 
 for _fn, _width in _ROWS.items():
