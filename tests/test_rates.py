@@ -201,7 +201,9 @@ def test_rate_loops_vectorise_over_a_segments_samples(rng, method, order):
     times = np.arange(5.0)
     qa.spline(times, smooth_keys(rng, 5), np.linspace(0, 4, 50), method=method, order=order)
     loop = splines._RATES[(method, order)].serial
-    sig = loop.signatures[0]
+    # the float64 signature of the call above (other tests in this process may have
+    # compiled the loop for float32 first: its vectors are of float)
+    sig = next(s for s in loop.signatures if s[2].dtype == numba.float64)
     fresh = numba.njit(cache=False, error_model="numpy")(loop.py_func)  # cached code has no IR to see
     fresh.compile(sig)
     assert re.search(r"= fmul (?:\w+ )*<\d+ x double>", fresh.inspect_llvm(sig)), "the rate loop did not vectorise"
