@@ -19,10 +19,11 @@ from ._jit import (
     CACHE, RowLoop, bit_distance, bits_type, element, exponent_scales, inline, ir_inline, like,
     lower_bit_distance, prange, prefer_no_gather, specialise,
 )
+from ._trace import traced
 from ._trig import atan2
 
 
-@element
+@traced
 def qmul(p, q):
     """Hamilton product p⊗q."""
     pw, px, py, pz = p
@@ -35,12 +36,12 @@ def qmul(p, q):
     )
 
 
-@element
+@traced
 def qconj(q):
     return (q[0], -q[1], -q[2], -q[3])
 
 
-@element
+@traced
 def qdot(p, q):
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
 
@@ -321,12 +322,12 @@ def pick3(c, a, b):
     return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2])
 
 
-@element
+@traced
 def qscale(q, s):
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
 
 
-@element
+@traced
 def qneg(q):
     return (-q[0], -q[1], -q[2], -q[3])
 
@@ -357,7 +358,7 @@ def qinverse(q):
     return (a[0] * k, -a[1] * k, -a[2] * k, -a[3] * k)
 
 
-@element
+@traced
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
@@ -378,7 +379,7 @@ def qrotate(q, v):
     return qrotate_raw(a, v, qdot(a, a))
 
 
-@inline
+@traced
 def qrotate_raw(q, v, n2):
     """:func:`qrotate` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w = q[0]

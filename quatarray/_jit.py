@@ -39,13 +39,22 @@ Kernel layers
     (an LLVM call from the loop that uses it), cached, and cheap to compile:
     without the CPython and C wrappers (:data:`NO_WRAPPERS`), which only calls
     from Python need (those run a wrapped twin, :class:`_Element`).
+``traced`` (:mod:`quatarray._trace`)
+    Straight-line per-element math (arithmetic, ``sqrt``, comparisons,
+    :func:`~quatarray._trace.select`, calls of other traced functions) as a
+    builtin of each caller: typed and lowered by running the Python function
+    on symbols, with no numba compile of its own, its instructions in the
+    caller's IR before LLVM optimises it (so the loop vectoriser sees them,
+    as with ``inline``). The cheapest layer to compile, and the one for
+    short formulas: the quaternion products, the branch-free trigonometry of
+    ``_trig``, slerp's arcs and the spline rates' rules.
 ``inline``
     Like ``element`` (compiled once per signature, cached) but marked
     ``alwaysinline`` for LLVM (numba's ``forceinline``), so every caller gets
     it inlined before LLVM's loop vectoriser runs. Use it for the per-row
-    math inside row loops that must vectorise (the branch-free trigonometry
-    of ``_trig`` and the element functions that call it): a call that LLVM
-    does not inline stops the vectoriser. It gives the same SIMD code as
+    math inside row loops that must vectorise where a traced function cannot
+    serve (it calls a compiled function, reads an array, or branches): a call
+    that LLVM does not inline stops the vectoriser. It gives the same SIMD code as
     numba's IR-level ``inline="always"``, which re-runs numba's front end on
     every callee at every call site, nested: that made the Bézier spline's
     first call take over a minute to compile; with LLVM inlining it takes
@@ -95,6 +104,9 @@ from numba import types
 from numba.core import cgutils
 from numba.core.registry import CPUDispatcher
 from numba.extending import lower_builtin, type_callable
+
+from . import _trace
+from ._trace import Sym
 
 
 def _defer_blas_probe():
@@ -528,8 +540,9 @@ def kernel(fn=None, *, parallel=False):
 
 
 def like(x, c):
-    """``c`` converted to the float type of ``x`` (identity in plain Python)."""
-    return c
+    """``c`` converted to the float type of ``x`` (identity in plain Python; a
+    constant of the symbol's type in a traced function, :mod:`quatarray._trace`)."""
+    return x.like(c) if type(x) is Sym else c
 
 
 @type_callable(like)
@@ -567,6 +580,8 @@ def fmuladd(a, b, c):
     batch size.
     Not for code that relies on an exact cancellation (``a·b − b·a`` = 0, as in
     the quaternion products), which a fused multiply-add breaks."""
+    if Sym in (type(a), type(b), type(c)):  # in a traced function (quatarray._trace)
+        return _trace.fmuladd(a, b, c)
     return a * b + c
 
 

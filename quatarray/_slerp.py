@@ -18,10 +18,11 @@ convention of :func:`quatarray.power`.
 import numpy as np
 
 from ._jit import element, fmuladd, inline, like
+from ._trace import select, traced
 from ._trig import half_arc, sincos
 
 
-@inline
+@traced
 def arc(p, q, shortest):
     """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
 
@@ -41,8 +42,8 @@ def arc(p, q, shortest):
     d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
     s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
     flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
-    m2 = s2 if flip else d2
-    p2 = d2 if flip else s2
+    m2 = select(flip, s2, d2)
+    p2 = select(flip, d2, s2)
     # 2 when flipped, else 0, converted from the boolean (a select or copysign
     # feeding the weights stops LLVM's vectoriser)
     sgn = like(d2, 2.0) * flip
@@ -66,12 +67,11 @@ def arc(p, q, shortest):
     # no tangent left (|v| ≤ sin θ / 2: rounding only): identical ends (any unit
     # tangent: sin tθ = 0) or antipodal ones, also p + sq parallel to p (sq a
     # scaled −p)
-    if n2 <= like(a, 0.25) * st * st:
-        v = (-p[1], p[0], p[3], -p[2])
+    v = select(n2 <= like(a, 0.25) * st * st, (-p[1], p[0], p[3], -p[2]), v)
     return th, v, sgn
 
 
-@inline
+@traced
 def slerp4(p, q, t, shortest=0.0):
     """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
     hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at
@@ -79,10 +79,8 @@ def slerp4(p, q, t, shortest=0.0):
     th, v, sgn = arc(p, q, shortest)
     s, c = sincos(t * th)
     r = (c * p[0] + s * v[0], c * p[1] + s * v[1], c * p[2] + s * v[2], c * p[3] + s * v[3])
-    if t == like(t, 1.0):
-        k = like(t, 1.0) - sgn
-        r = (k * q[0], k * q[1], k * q[2], k * q[3])
-    return r
+    k = like(t, 1.0) - sgn
+    return select(t == like(t, 1.0), (k * q[0], k * q[1], k * q[2], k * q[3]), r)
 
 
 @element
@@ -112,14 +110,14 @@ def squad4(q0, s0, s1, q1, t):
     return slerp_call(slerp_call(q0, q1, t), slerp_call(s0, s1, t), h)
 
 
-@inline
+@traced
 def double4(p, q):
     """Shoemake's Double: 2(p·q)q − p."""
     d2 = like(p[0], 2.0) * (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
     return (d2 * q[0] - p[0], d2 * q[1] - p[1], d2 * q[2] - p[2], d2 * q[3] - p[3])
 
 
-@inline
+@traced
 def bisect4(p, q):
     """Shoemake's Bisect: (p + q)/|p + q|."""
     s = (p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3])
@@ -127,7 +125,7 @@ def bisect4(p, q):
     return (s[0] / n, s[1] / n, s[2] / n, s[3] / n)
 
 
-@inline
+@traced
 def controls4(qp, qn, qx, f_out, f_in):
     """(a_n, b_n) of key qn between qp and qx: â = bisect(double(qp, qn), qx),
     a₀ = slerp(qn, â, 1/3), a_n = slerp(qn, a₀, f_out), b_n = slerp(qn, double(a₀, qn), f_in)."""
@@ -136,13 +134,13 @@ def controls4(qp, qn, qx, f_out, f_in):
     return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
 
 
-@inline
+@traced
 def lerp4(p, q, s, t):
     """The linear blend s·p + t·q."""
     return (s * p[0] + t * q[0], s * p[1] + t * q[1], s * p[2] + t * q[2], s * p[3] + t * q[3])
 
 
-@inline
+@traced
 def nlerp4(p, q, s, t):
     """The normalised blend (s·p + t·q)/|s·p + t·q|."""
     r = lerp4(p, q, s, t)
@@ -150,18 +148,16 @@ def nlerp4(p, q, s, t):
     return (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr)
 
 
-@inline
+@traced
 def arc_slerp(p, q, c, t):
     """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`quatarray.splines.put_arc`."""
     th, v0, v1, v2, v3 = c
     s, co = sincos(t * th)
     r = (co * p[0] + s * v0, co * p[1] + s * v1, co * p[2] + s * v2, co * p[3] + s * v3)
-    if t == like(t, 1.0):  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
-        r = q
-    return r
+    return select(t == like(t, 1.0), q, r)  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
 
 
-@inline
+@traced
 def bezier_seg(q0, a, b, q1, c0, c1, c2, t):
     """Segment value at u = t: the level-1 slerps on the three fixed control arcs, then two levels of slerp."""
     p01 = arc_slerp(q0, a, c0, t)

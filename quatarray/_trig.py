@@ -44,10 +44,9 @@ only up to ``sincos_limit``).
 """
 
 import numpy as np
-from numba import types
-from numba.extending import overload
 
-from ._jit import CACHE, INLINE_OPTIONS, fmuladd, inline, like
+from ._jit import fmuladd, like
+from ._trace import float_bits, select, traced
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01
@@ -99,43 +98,20 @@ PIO4_LO = 3.06161699786838301793e-17  # fdlibm atanlo[3]
 TAN_PI8 = 0.41421356237309503
 
 
+@traced
 def reduce_pio2(x, k):
-    """x − k·π/2 (Cody–Waite): three pieces of π/2 in float64, four in float32.
-
-    Plain Python version (``NUMBA_DISABLE_JIT=1``); compiled code gets the
-    overload below, which picks the pieces by x's type at compile time.
-    """
-    if isinstance(x, np.float32):
-        f = np.float32
-        return (((x - k * f(PIO2F_1)) - k * f(PIO2F_2)) - k * f(PIO2F_3)) - k * f(PIO2F_4)
-    return (((x - k * PIO2_1) - k * PIO2_2) - k * PIO2_3) - k * PIO2_4
-
-
-@overload(reduce_pio2, jit_options=INLINE_OPTIONS)
-def _reduce_pio2(x, k):
-    if isinstance(x, types.Float) and x.bitwidth == 32:
-        p1, p2, p3, p4 = (np.float32(c) for c in (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4))
-
-        def impl32(x, k):
-            r = fmuladd(-k, p1, x)  # exact (Sterbenz) for |k| < 2¹⁵
-            r = fmuladd(-k, p2, r)  # k·p2, k·p3 exact; the differences exact when they cancel
-            r = fmuladd(-k, p3, r)
-            return fmuladd(-k, p4, r)
-
-        return impl32
-    if isinstance(x, types.Float):
-        p1, p2, p3, p4 = (np.float64(c) for c in (PIO2_1, PIO2_2, PIO2_3, PIO2_4))
-
-        def impl64(x, k):
-            r = fmuladd(-k, p1, x)  # exact for |k| < 2²⁰, as are k·p2, k·p3
-            r = fmuladd(-k, p2, r)
-            r = fmuladd(-k, p3, r)
-            return fmuladd(-k, p4, r)  # matters only within ~1e-9 of a multiple of π/2
-
-        return impl64
+    """x − k·π/2 (Cody–Waite): three pieces of π/2 in float64 (k·piece exact for
+    |k| < 2²⁰), four in float32 (exact for |k| < 2¹⁵, the differences exact
+    (Sterbenz) where they cancel), as fused multiply-adds; the float type picks the
+    pieces at compile time."""
+    pieces = (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4) if float_bits(x) == 32 else (PIO2_1, PIO2_2, PIO2_3, PIO2_4)
+    r = x
+    for p in pieces:  # the last matters only within ~1e-9 of a multiple of π/2 (float64)
+        r = fmuladd(-k, like(x, p), r)
+    return r
 
 
-@inline
+@traced
 def sincos(x):
     """(sin x, cos x), branch-free; accurate for |x| ≤ :func:`sincos_limit`."""
     k = np.rint(x * like(x, INVPIO2))
@@ -143,8 +119,8 @@ def sincos(x):
     # Beyond sincos_limit the reduction is inexact; there |r| may leave [-π/4, π/4],
     # where the polynomials diverge (1e22 for float32 x = 1e6). Clamped (nan kept),
     # sin² + cos² = 1 holds for every x: the angle is as uncertain as x's rounding.
-    r = like(x, R_MAX) if r > like(x, R_MAX) else r
-    r = like(x, -R_MAX) if r < like(x, -R_MAX) else r
+    r = select(r > like(x, R_MAX), like(x, R_MAX), r)
+    r = select(r < like(x, -R_MAX), like(x, -R_MAX), r)
     z = r * r
     # sin(r) = r + r z (S1 + z P), cos(r) = 1 - z/2 + z² Q (fdlibm's split keeps it exact)
     # (Horner's scheme in fused multiply-adds: see quatarray._jit.fmuladd)
@@ -160,14 +136,14 @@ def sincos(x):
     m = k - like(x, 4.0) * np.floor(k * like(x, 0.25))
     h = m * like(x, 0.5)
     odd = h != np.floor(h)
-    sn = c if odd else s
-    cs = s if odd else c
-    sn = -sn if m >= like(x, 2.0) else sn
-    cs = -cs if abs(m - like(x, 1.5)) < like(x, 1.0) else cs
+    sn = select(odd, c, s)
+    cs = select(odd, s, c)
+    sn = select(m >= like(x, 2.0), -sn, sn)
+    cs = select(abs(m - like(x, 1.5)) < like(x, 1.0), -cs, cs)
     return sn, cs
 
 
-@inline
+@traced
 def atan_small(x):
     """atan(x) for |x| ≤ 7/16 (fdlibm)."""
     z = x * x
@@ -179,7 +155,7 @@ def atan_small(x):
     return fmuladd(-x, s1 + s2, x)
 
 
-@inline
+@traced
 def half_arc(a, b):
     """atan2(a, b) for a, b ≥ 0, in [0, π/2], branch-free.
 
@@ -188,23 +164,23 @@ def half_arc(a, b):
     a > b reflects the result about π/4 (atan2(a, b) = π/2 − atan2(b, a)).
     """
     swap = a > b
-    lo = b if swap else a
-    hi = a if swap else b
+    lo = select(swap, b, a)
+    hi = select(swap, a, b)
     big = lo > like(a, TAN_PI8) * hi
-    num = (lo - hi) if big else lo
-    den = (lo + hi) if big else hi
+    num = select(big, lo - hi, lo)
+    den = select(big, lo + hi, hi)
     x = num / den
     r = atan_small(x)
     # π/4 and π/2 in two parts so the sums keep the full precision
     zero = like(a, 0.0)
-    off_hi = like(a, PIO4_HI) if big else zero
-    off_lo = like(a, PIO4_LO) if big else zero
+    off_hi = select(big, like(a, PIO4_HI), zero)
+    off_lo = select(big, like(a, PIO4_LO), zero)
     y = off_hi + (r + off_lo)
     refl = (like(a, 2.0 * PIO4_HI) - y) + like(a, 2.0 * PIO4_LO)
-    return refl if swap else y
+    return select(swap, refl, y)
 
 
-@inline
+@traced
 def atan2(y, x):
     """atan2(y, x) in all four quadrants, branch-free (same reduction as
     :func:`half_arc`, then the quadrant).
@@ -217,18 +193,18 @@ def atan2(y, x):
     ax = abs(x)
     ay = abs(y)
     swap = ay > ax
-    lo = ax if swap else ay
-    hi = ay if swap else ax
+    lo = select(swap, ax, ay)
+    hi = select(swap, ay, ax)
     big = lo > like(x, TAN_PI8) * hi
-    num = (lo - hi) if big else lo
-    den = (lo + hi) if big else hi
+    num = select(big, lo - hi, lo)
+    den = select(big, lo + hi, hi)
     u = num / den
-    u = zero if (hi == zero) & (lo == zero) else u  # atan2(±0, ±0); nan stays nan
+    u = select((hi == zero) & (lo == zero), zero, u)  # atan2(±0, ±0); nan stays nan
     r = atan_small(u)
     # r, π/2 − r (|y| > |x|), π/2 + r (and x < 0), π − r (x < 0); each ± π/4 when big
     neg = np.copysign(one, x) < zero
-    s = -one if swap != neg else one
-    k = (like(x, 2.0) if swap else (like(x, 4.0) if neg else zero)) + (s if big else zero)
+    s = select(swap != neg, -one, one)
+    k = select(swap, like(x, 2.0), select(neg, like(x, 4.0), zero)) + select(big, s, zero)
     return np.copysign(k * like(x, PIO4_HI) + (s * r + k * like(x, PIO4_LO)), y)
 
 
@@ -240,13 +216,7 @@ SINCOS_LIMIT_64 = 1.0e6
 SINCOS_LIMIT_32 = 32768.0
 
 
+@traced
 def sincos_limit(x):
     """The largest |x| for which :func:`sincos` is accurate to x's float rounding."""
-    return SINCOS_LIMIT_32 if isinstance(x, np.float32) else SINCOS_LIMIT_64
-
-
-@overload(sincos_limit, jit_options={"cache": CACHE})
-def _sincos_limit(x):
-    if isinstance(x, types.Float):
-        lim = np.float32(SINCOS_LIMIT_32) if x.bitwidth == 32 else np.float64(SINCOS_LIMIT_64)
-        return lambda x: lim
+    return like(x, SINCOS_LIMIT_32 if float_bits(x) == 32 else SINCOS_LIMIT_64)

@@ -15,6 +15,7 @@ import pytest
 HERE = pathlib.Path(__file__).parent
 MODULES = [
     "test_access.py",
+    "test_trace.py",
     "test_algebra.py",
     "test_rotation.py",
     "test_conversions.py",
