@@ -19,7 +19,7 @@ from ._jit import (
     CACHE, RowLoop, bit_distance, bits_type, element, exponent_scales, inline, ir_inline, like,
     lower_bit_distance, prange, prefer_no_gather, specialise,
 )
-from ._trace import traced
+from ._trace import select, traced
 from ._trig import atan2
 
 
@@ -308,18 +308,18 @@ def _far_scale(n2):
         return lambda n2: np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
-@inline
+@traced
 def pick4(c, a, b):
     """a if c else b for 4-tuples, as one select per component (both already
     computed), which keeps row loops vectorisable where a tuple-valued ``if``
     would not be."""
-    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2], a[3] if c else b[3])
+    return select(c, a[:4], b[:4])
 
 
-@inline
+@traced
 def pick3(c, a, b):
     """:func:`pick4` for 3-tuples."""
-    return (a[0] if c else b[0], a[1] if c else b[1], a[2] if c else b[2])
+    return select(c, a[:3], b[:3])
 
 
 @traced
@@ -363,9 +363,29 @@ def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@element
+@traced
 def vnorm(v):
     return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+@traced
+def vadd(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@traced
+def vsub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@traced
+def vscale(a, k):
+    return (a[0] * k, a[1] * k, a[2] * k)
+
+
+@traced
+def vdot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @element
@@ -402,7 +422,7 @@ def qmatrix(q):
     return qmatrix_raw(a, qdot(a, a))
 
 
-@inline
+@traced
 def qmatrix_raw(q, n2):
     """:func:`qmatrix` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w, x, y, z = q

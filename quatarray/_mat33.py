@@ -7,10 +7,10 @@ they never allocate, validate or raise and keep the float type of their
 arguments.
 """
 
-from ._jit import element
+from ._trace import traced
 
 
-@element
+@traced
 def det33(a):
     return (
         a[0] * (a[4] * a[8] - a[5] * a[7])
@@ -19,7 +19,7 @@ def det33(a):
     )
 
 
-@element
+@traced
 def cofactor33(a):
     """Cofactor matrix: equals det(a)·a⁻ᵀ."""
     return (
@@ -29,7 +29,7 @@ def cofactor33(a):
     )  # fmt: skip
 
 
-@element
+@traced
 def matvec(m, r):
     """M r."""
     return (
@@ -39,7 +39,7 @@ def matvec(m, r):
     )
 
 
-@element
+@traced
 def matmul(a, b):
     """A B."""
     return (
@@ -55,17 +55,17 @@ def matmul(a, b):
     )
 
 
-@element
+@traced
 def transpose(a):
     return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
-@element
+@traced
 def scale9(a, s):
     return (a[0] * s, a[1] * s, a[2] * s, a[3] * s, a[4] * s, a[5] * s, a[6] * s, a[7] * s, a[8] * s)
 
 
-@element
+@traced
 def lerp9(a, b, u, t):
     """u A + t B."""
     return (

@@ -39,33 +39,13 @@ needed beyond those of the curve's value (one atan2 per arc, one sincos).
 
 import numpy as np
 
-from ._elements import cross, qconj, qmul, qrotate_raw
+from ._elements import cross, qconj, qmul, qrotate_raw, vadd, vdot, vscale, vsub
 from ._jit import like
 from ._trace import select, traced
 from ._trig import atan2, sincos
 
 SMALL2 = 0.0625  # n² below which the series are used (n < 0.25: their terms to n¹⁰ are exact to 1e-17 there)
 TINY2 = 1e-6  # n² below which sin(n/2)/n takes its series (it does not cancel: only 0/0 is avoided)
-
-
-@traced
-def _vadd(a, b):
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-@traced
-def _vsub(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-@traced
-def vscale(a, k):
-    return (a[0] * k, a[1] * k, a[2] * k)
-
-
-@traced
-def _vdot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @traced
@@ -148,7 +128,7 @@ def jac_inv(r, ki, v):
 @traced
 def jac_dot(r, rd, j1, j2, k2):
     """N(r, r') = J(r)'·r': the body acceleration of Exp(r) is J(r) r'' + N(r, r')."""
-    dp = _vdot(r, rd)
+    dp = vdot(r, rd)
     cp = cross(r, rd)
     ccp = cross(r, cp)
     dccp = cross(rd, cp)
@@ -171,7 +151,7 @@ def log_arc(a, b):
     the arc's angle on S³), n2 = |r|², s = sin θ, c = cos θ (from D itself)."""
     d = qmul(qconj(a), b)
     dv = (d[1], d[2], d[3])
-    un = np.sqrt(_vdot(dv, dv))
+    un = np.sqrt(vdot(dv, dv))
     th = atan2(un, d[0])
     zero = like(un, 0.0)
     f = select(un > zero, like(un, 2.0) * th / un, like(un, 2.0))
@@ -187,16 +167,16 @@ def slerp_rates(a, wa, b, wb, w, dw):
     r, n2, s_, c_ = log_arc(a, b)
     k1, k2 = jac_coeffs(n2, s_, c_)
     ki = inv_coeff(n2, s_, c_)
-    wd = _vsub(wb, unrotate(qmul(qconj(a), b), wa))  # Ω_D
+    wd = vsub(wb, unrotate(qmul(qconj(a), b), wa))  # Ω_D
     rd = jac_inv(r, ki, wd)
     y = vscale(r, w)
-    yd = _vadd(vscale(r, dw), vscale(rd, w))
+    yd = vadd(vscale(r, dw), vscale(rd, w))
     ny2 = w * w * n2
     hs, hc = sincos(like(w, 0.5) * abs(w) * np.sqrt(n2))  # half the angle |y| = |w|·|r|
     e = qexp_half(y, ny2, hs, hc)
     ky1, ky2 = jac_coeffs(ny2, hs, hc)
     wy = jac(y, ky1, ky2, yd)
-    ws = _vadd(unrotate(e, wa), wy)
+    ws = vadd(unrotate(e, wa), wy)
     return qmul(a, e), ws, (r, rd, wd, n2, s_, c_, k2, ki, y, yd, ny2, hs, hc, ky1, ky2, e, wy)
 
 
@@ -220,14 +200,14 @@ def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     r, rd, wd, n2, s_, c_, k2, ki, y, yd, ny2, hs, hc, ky1, ky2, e, wy = x
     d = qmul(qconj(a), b)
     z = unrotate(d, wa)
-    gd = _vadd(_vsub(gb, unrotate(d, ga)), cross(wd, z))  # Γ_D
+    gd = vadd(vsub(gb, unrotate(d, ga)), cross(wd, z))  # Γ_D
     j1, j2 = acc_coeffs(n2, s_, c_)
-    rdd = jac_inv(r, ki, _vsub(gd, jac_dot(r, rd, j1, j2, k2)))
-    ydd = _vadd(_vadd(vscale(r, ddw), vscale(rd, like(w, 2.0) * dw)), vscale(rdd, w))
+    rdd = jac_inv(r, ki, vsub(gd, jac_dot(r, rd, j1, j2, k2)))
+    ydd = vadd(vadd(vscale(r, ddw), vscale(rd, like(w, 2.0) * dw)), vscale(rdd, w))
     yj1, yj2 = acc_coeffs(ny2, hs, hc)
-    gy = _vadd(jac(y, ky1, ky2, ydd), jac_dot(y, yd, yj1, yj2, ky2))
+    gy = vadd(jac(y, ky1, ky2, ydd), jac_dot(y, yd, yj1, yj2, ky2))
     za = unrotate(e, wa)
-    gs = _vadd(_vsub(unrotate(e, ga), cross(wy, za)), gy)
+    gs = vadd(vsub(unrotate(e, ga), cross(wy, za)), gy)
     return s, ws, gs
 
 

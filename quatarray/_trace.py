@@ -270,6 +270,8 @@ def select(c, a, b):
     ty = _float_of(a, b)
     if _NOW[-1] is None:
         return Sym(ty)
+    if not isinstance(c.ty, types.Boolean):  # a number's truth, as Python's and numba's: c != 0 (nan is true)
+        c = _compare("!=", c, 0)
     return Sym(ty, _NOW[-1][1].select(c.v, _value(a, ty), _value(b, ty)))
 
 

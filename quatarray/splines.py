@@ -55,7 +55,7 @@ from . import _cubic
 from . import _elements as E
 from ._access import load1, load4, loads, store1, store4, stores
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
-from ._rates import vscale, acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
+from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
@@ -436,7 +436,7 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             f = like(x0, 2.0) / cc
             v = (f * d[1], f * d[2], f * d[3])
             if ORDER == 2:
-                v = vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
+                v = E.vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
         if KIND == 2:
             pq = arc_slerp(q0, q1, loads(seg, n + 16, 5), u)
             ps = arc_slerp(a, b, loads(seg, n + 21, 5), u)

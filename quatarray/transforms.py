@@ -30,6 +30,7 @@ from . import _elements as E
 from ._access import load33, store33
 from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
+from ._trace import select, traced
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
 from .conversions import from_matrix
 
@@ -40,17 +41,7 @@ _F32 = np.dtype(np.float32)
 # per-element helpers; 3×3 matrices are row-major 9-tuples (quatarray._mat33)
 
 
-@element
-def _add3(a, b):
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-@element
-def _scale3(a, s):
-    return (a[0] * s, a[1] * s, a[2] * s)
-
-
-@element
+@traced
 def _mat_inverse(m):
     """(M⁻¹, |det M| / (|r0| |r1| |r2|)) for rows r_k of M.
 
@@ -61,8 +52,7 @@ def _mat_inverse(m):
     inv = scale9(transpose(cofactor33(m)), like(det, 1.0) / det)
     den = E.vnorm((m[0], m[1], m[2])) * E.vnorm((m[3], m[4], m[5])) * E.vnorm((m[6], m[7], m[8]))
     ratio = abs(det) / den
-    if den == like(den, 0.0):  # a zero row: singular (not 0/0 = nan)
-        ratio = like(den, 0.0)
+    ratio = select(den == like(den, 0.0), like(den, 0.0), ratio)  # a zero row: singular (not 0/0 = nan)
     return inv, ratio
 
 
@@ -85,7 +75,7 @@ def _apply_vqs_plain(i, args):
     n2 = E.qdot(a, a)
     f = E.far_scale(n2)
     keep_v = np.int32(out.ctypes.data == v.ctypes.data)  # int32 like f: one pick3 compiled
-    E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), _add3(E.qrotate_raw(a, _scale3(x, s[i]), n2), t)))
+    E.store3(out, i, E.pick3(f, E.pick3(keep_v, t, x), E.vadd(E.qrotate_raw(a, E.vscale(x, s[i]), n2), t)))
     return f
 
 
@@ -94,8 +84,8 @@ def _apply_vqs_scaled(i, args):
     v, q, s, p, out = args
     a = E.load4(q, i)
     if E.far_scale(E.qdot(a, a)):
-        r = _scale3(E.load3(p, i), s[i])
-        E.store3(out, i, _add3(E.qrotate(a, r), E.load3(v, i)))
+        r = E.vscale(E.load3(p, i), s[i])
+        E.store3(out, i, E.vadd(E.qrotate(a, r), E.load3(v, i)))
 
 
 _apply_vqs = E.FarRows(_apply_vqs_plain, _apply_vqs_scaled, "apply_vqs")
@@ -105,7 +95,7 @@ _apply_vqs = E.FarRows(_apply_vqs_plain, _apply_vqs_scaled, "apply_vqs")
 def _apply_vqm(v, q, m, p, out):
     for i in prange(p.shape[0]):
         r = matvec(load33(m, i), E.load3(p, i))
-        E.store3(out, i, _add3(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
+        E.store3(out, i, E.vadd(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
 
 
 @rowloop(parallel=False)
@@ -136,7 +126,7 @@ def _compose_vqs(va, qa, sa, vb, qb, sb, vo, qo, so):
     for i in prange(va.shape[0]):
         qa_ = E.load4(qa, i)
         s_a = sa[i]
-        v = _add3(E.qrotate(qa_, _scale3(E.load3(vb, i), s_a)), E.load3(va, i))
+        v = E.vadd(E.qrotate(qa_, E.vscale(E.load3(vb, i), s_a)), E.load3(va, i))
         q = E.qmul(qa_, E.load4(qb, i))
         s = s_a * sb[i]
         E.store3(vo, i, v)
@@ -151,7 +141,7 @@ def _compose_vqm(va, qa, ma, vb, qb, mb, vo, qo, mo):
         qb_ = E.load4(qb, i)
         ma_ = load33(ma, i)
         rb = E.qmatrix(qb_)
-        v = _add3(E.qrotate(qa_, matvec(ma_, E.load3(vb, i))), E.load3(va, i))
+        v = E.vadd(E.qrotate(qa_, matvec(ma_, E.load3(vb, i))), E.load3(va, i))
         q = E.qmul(qa_, qb_)
         m = matmul(transpose(rb), matmul(ma_, matmul(rb, load33(mb, i))))  # R_bᵀ M_a R_b M_b
         E.store3(vo, i, v)
@@ -165,7 +155,7 @@ def _inverse_vqs(v, q, s, vo, qo, so):
         q_ = E.load4(q, i)
         k = like(so, 1.0) / s[i]
         vi = E.qrotate(E.qconj(q_), E.load3(v, i))
-        E.store3(vo, i, _scale3(vi, -k))
+        E.store3(vo, i, E.vscale(vi, -k))
         E.store4(qo, i, E.qinverse(q_))
         so[i] = k
 
@@ -179,7 +169,7 @@ def _inverse_vqm(v, q, m, vo, qo, mo, ratio):
         inv, c = _mat_inverse(load33(m, i))
         # [v, q, M]⁻¹ = [−M⁻¹ Rᵀ v, q⁻¹, R M⁻¹ Rᵀ]
         vi = matvec(inv, matvec(rt, E.load3(v, i)))
-        E.store3(vo, i, _scale3(vi, like(c, -1.0)))
+        E.store3(vo, i, E.vscale(vi, like(c, -1.0)))
         E.store4(qo, i, E.qinverse(q_))
         store33(mo, i, matmul(r, matmul(inv, rt)))
         ratio[i] = c
@@ -213,7 +203,7 @@ def _lerp_vs(va, sa, vb, sb, t, vo, so):
         prefer_no_gather()
         t_ = t[i]
         u = like(t_, 1.0) - t_
-        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
+        E.store3(vo, i, E.vadd(E.vscale(E.load3(va, i), u), E.vscale(E.load3(vb, i), t_)))
         so[i] = sa[i] ** u * sb[i] ** t_
 
 
@@ -222,7 +212,7 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
     for i in prange(va.shape[0]):
         t_ = t[i]
         u = like(t_, 1.0) - t_
-        E.store3(vo, i, _add3(_scale3(E.load3(va, i), u), _scale3(E.load3(vb, i), t_)))
+        E.store3(vo, i, E.vadd(E.vscale(E.load3(va, i), u), E.vscale(E.load3(vb, i), t_)))
         store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
 
 

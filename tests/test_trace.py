@@ -165,6 +165,21 @@ def test_a_kernel_calling_traced_functions_compiles_nothing_else():
     np.testing.assert_allclose(out, np.cross(u, v) + q[:, :1] * v, rtol=1e-15)
 
 
+@traced
+def _pick_by_number(c, a, b):
+    return select(c, a, b)
+
+
+@numba.njit
+def _picks(cs, a, b):
+    return [_pick_by_number(c, a, b) for c in cs]
+
+
+@pytest.mark.parametrize("cs", [[0, 1, -3], [0.0, np.nan, -0.0, 2.5], [np.int32(0), np.int32(7)]])
+def test_select_on_a_number_takes_its_truth(cs):
+    assert _picks(np.array(cs), 1.0, 2.0) == [1.0 if c else 2.0 for c in cs]
+
+
 def test_select_picks_component_by_component():
     assert select(True, (1.0, 2.0), (3.0, 4.0)) == (1.0, 2.0)
     assert select(False, (1.0, (2.0, 5.0)), (3.0, (4.0, 6.0))) == (3.0, (4.0, 6.0))
