@@ -5,9 +5,9 @@ import os
 import numba
 import numpy as np
 import pytest
-from numba.core import event
 from numba.core.errors import TypingError
 
+from compile_events import compiles
 from quatarray._access import load1, load3, load4, load33, loads, store1, store3, store33, store4, stores
 
 JIT = os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
@@ -94,17 +94,8 @@ def test_the_accessors_compile_nothing_of_their_own():
             store1(out1, i, load1(s, i))
         stores(out_seg, 0, loads(seg, 0, 5))
 
-    compiled = []
-
-    class Listener(event.Listener):
-        def on_start(self, e):
-            compiled.append(e.data["dispatcher"].py_func.__name__)
-
-        def on_end(self, e):
-            pass
-
     args = (np.zeros((4, 4), np.float32), np.zeros((4, 3), np.float32), np.zeros(4, np.float32), np.zeros(5),
             np.empty((4, 4), np.float32), np.empty((4, 3), np.float32), np.empty(4, np.float32), np.empty(5))
-    with event.install_listener("numba:compile", Listener()):
+    with compiles() as compiled:
         kernel(*args)
     assert compiled == ["kernel"]

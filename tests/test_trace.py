@@ -6,9 +6,9 @@ import os
 import numba
 import numpy as np
 import pytest
-from numba.core import event
 from numba.core.errors import TypingError
 
+from compile_events import compiles
 from quatarray._jit import fmuladd, like
 from quatarray._trace import float_bits, select, traced
 
@@ -146,19 +146,10 @@ def _rot_rows(q, v, out):
 
 @pytest.mark.skipif(not JIT, reason="counts numba compiles")
 def test_a_kernel_calling_traced_functions_compiles_nothing_else():
-    names = []
-
-    class Listen(event.Listener):
-        def on_start(self, ev):
-            names.append(ev.data["dispatcher"].py_func.__name__)
-
-        def on_end(self, ev):
-            pass
-
     q = np.random.default_rng(0).normal(size=(5, 4))
     v = np.random.default_rng(1).normal(size=(5, 3))
     out = np.empty((5, 3))
-    with event.install_listener("numba:compile", Listen()):
+    with compiles() as names:
         _rot_rows(q, v, out)
     assert names == ["_rot_rows"]
     u = q[:, 1:]
