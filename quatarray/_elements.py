@@ -364,8 +364,13 @@ def cross(a, b):
 
 
 @traced
+def vdot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@traced
 def vnorm(v):
-    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return np.sqrt(vdot(v, v))
 
 
 @traced
@@ -381,11 +386,6 @@ def vsub(a, b):
 @traced
 def vscale(a, k):
     return (a[0] * k, a[1] * k, a[2] * k)
-
-
-@traced
-def vdot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @element

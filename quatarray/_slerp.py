@@ -17,6 +17,7 @@ convention of :func:`quatarray.power`.
 
 import numpy as np
 
+from ._elements import qdot
 from ._jit import element, fmuladd, inline, like
 from ._trace import select, traced
 from ._trig import half_arc, sincos
@@ -113,7 +114,7 @@ def squad4(q0, s0, s1, q1, t):
 @traced
 def double4(p, q):
     """Shoemake's Double: 2(p·q)q − p."""
-    d2 = like(p[0], 2.0) * (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
+    d2 = like(p[0], 2.0) * qdot(p, q)
     return (d2 * q[0] - p[0], d2 * q[1] - p[1], d2 * q[2] - p[2], d2 * q[3] - p[3])
 
 
@@ -121,7 +122,7 @@ def double4(p, q):
 def bisect4(p, q):
     """Shoemake's Bisect: (p + q)/|p + q|."""
     s = (p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3])
-    n = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + s[3] * s[3])
+    n = np.sqrt(qdot(s, s))
     return (s[0] / n, s[1] / n, s[2] / n, s[3] / n)
 
 
@@ -144,7 +145,7 @@ def lerp4(p, q, s, t):
 def nlerp4(p, q, s, t):
     """The normalised blend (s·p + t·q)/|s·p + t·q|."""
     r = lerp4(p, q, s, t)
-    nr = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+    nr = np.sqrt(qdot(r, r))
     return (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr)
 
 
