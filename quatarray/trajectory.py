@@ -657,6 +657,18 @@ def _all_pairs_by_distance(dist, delta, tol):
     return out_i[:m], out_j[:m]
 
 
+def _step_lengths(pos, all_pairs):
+    """The lengths of the steps between consecutive positions, rounded as evo rounds them
+    (so that a running length that lands exactly on delta picks the pairs evo picks): its
+    consecutive pairs take ``np.linalg.norm`` of each step (a dot product, as numpy's
+    ``vecdot``), its all-pairs distances ``np.linalg.norm(..., axis=1)`` (a sum of squares)."""
+    pos = _c64(pos)
+    if all_pairs:
+        return np.linalg.norm(pos[:-1] - pos[1:], axis=1)
+    step = pos[1:] - pos[:-1]
+    return np.sqrt(np.vecdot(step, step))
+
+
 def pairs(est, delta=1, delta_unit="frames", all_pairs=False, rel_delta_tol=0.1):
     """Index pairs (i, j) for the relative pose error, as evo's ``id_pairs_from_delta``.
 
@@ -707,8 +719,7 @@ def pairs(est, delta=1, delta_unit="frames", all_pairs=False, rel_delta_tol=0.1)
             i, j = ids[:-1], ids[1:]
     else:
         if delta_unit == "m":
-            step = np.diff(est.pos, axis=0)
-            steps = np.sqrt(np.einsum("ij,ij->i", step, step))
+            steps = _step_lengths(est.pos, all_pairs)
         else:
             if est.t is None:
                 raise ValueError("a delta in seconds needs times")
