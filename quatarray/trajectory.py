@@ -393,18 +393,44 @@ class MomentsFeed:
 
 
 class Alignment(NamedTuple):
-    """A similarity y = s R x + t: rotation as matrix and quaternion, translation, scale."""
+    """A similarity y = s R x + t: rotation as matrix and quaternion, translation, scale.
+
+    A fitted alignment also keeps the points it was fitted about, `origin_x` (an estimate
+    position) and `origin_y` (a reference position), and the translation between them,
+    `t_local`: y = origin_y + (s R (x − origin_x) + t_local). Far from the origin (UTM
+    coordinates, 10⁷ m) s R x + t loses the digits the errors are made of; :meth:`frame`
+    gives both streams about those points, where the errors are computed exactly.
+    """
 
     r: np.ndarray
     q: np.ndarray
     t: np.ndarray
     s: float
+    origin_x: np.ndarray = None
+    origin_y: np.ndarray = None
+    t_local: np.ndarray = None
 
     def apply(self, p):
         """The poses `p` moved by this transform (positions s R x + t, rotations R ∘ q)."""
-        pos, q = _c64(p.pos), _c64(p.q)
+        if self.origin_x is None:
+            return self._moved(p.pos, p)
+        moved = self._moved(_c64(p.pos) - self.origin_x, p)
+        return moved.replace(pos=moved.pos + self.origin_y)
+
+    def frame(self, ref, est):
+        """`ref` and `est` moved by this transform, both with `origin_y` subtracted from their
+        positions (a translation, which no error depends on; the positions as given when the
+        alignment has no origins): ``ref.pos − origin_y`` and ``s R (est.pos − origin_x) +
+        t_local``, without the rounding of positions far from the origin."""
+        if self.origin_x is None:
+            return ref, (est if self is IDENTITY else self._moved(est.pos, est))
+        return ref.replace(pos=_c64(ref.pos) - self.origin_y), self._moved(_c64(est.pos) - self.origin_x, est)
+
+    def _moved(self, pos, p):
+        pos, q = _c64(pos), _c64(p.q)
         out_pos, out_q = np.empty_like(pos), np.empty_like(q)
-        _apply_kernel(np.asarray(self.q, np.float64), float(self.s), np.asarray(self.t, np.float64),
+        t = self.t if self.t_local is None else self.t_local
+        _apply_kernel(np.asarray(self.q, np.float64), float(self.s), np.asarray(t, np.float64),
                       pos, q, out_pos, out_q)
         return Poses(p.t, out_pos, out_q)
 
@@ -431,7 +457,7 @@ def _apply_kernel(aq, s, t, pos, q, out_pos, out_q):
 IDENTITY = Alignment(np.eye(3), np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0)
 
 
-def umeyama(x, y=None, with_scale=True):
+def umeyama(x, y=None, with_scale=True, origin=None):
     """Umeyama's least-squares similarity taking points `x` onto points `y`.
 
     Minimises Σ |y_i − (s R x_i + t)|² (with s = 1 unless `with_scale`), as
@@ -441,6 +467,11 @@ def umeyama(x, y=None, with_scale=True):
     ----------
     x, y : array_like, shape (n, 3), or a :class:`Moments` as `x` (then no `y`)
     with_scale : bool
+    origin : (array_like, array_like), optional
+        A point of each set the fit is made about (see :class:`Alignment`): the
+        moments are taken of ``x − origin[0]`` and ``y − origin[1]`` (given `x`
+        and `y`: default the first pair; given :class:`Moments`: they are the
+        moments of points so shifted).
 
     Returns
     -------
@@ -450,7 +481,9 @@ def umeyama(x, y=None, with_scale=True):
     ------
     ValueError
         Fewer than 3 points; all points of either set equal; points on a line
-        (the rotation about that line is not determined).
+        (the rotation about that line is not determined): the second singular
+        value of their covariance at most :data:`LINE_TOLERANCE` times the first,
+        a test that does not depend on the units.
 
     Examples
     --------
@@ -465,21 +498,41 @@ def umeyama(x, y=None, with_scale=True):
     """
     from .conversions import from_matrix  # only once an alignment is found (CLI start-up)
 
-    m = x if isinstance(x, Moments) else Moments.of(x, y)
+    if isinstance(x, Moments):
+        m = x
+    else:
+        x, y = _c64(x), _c64(y)
+        if origin is None and x.shape[0]:
+            origin = (x[0].copy(), y[0].copy())  # the first pair: x - origin is exact near it
+        m = Moments.of(x, y) if origin is None else Moments.of(x - origin[0], y - origin[1])
     if m.n < 3:
         raise ValueError(f"alignment needs at least 3 poses, got {m.n}")
-    if m.sxx == 0.0 or not np.any(m.cyx):
-        raise ValueError("alignment is not possible: all positions are equal")
+    if m.sxx == 0.0:
+        raise ValueError("alignment is not possible: all positions are equal in the estimate")
+    if not np.any(m.cyx):
+        raise ValueError("alignment is not possible: all positions are equal in the reference "
+                         "(or do not vary with the estimate's at all)")
     u, d, vt = np.linalg.svd(m.cyx / m.n)
-    if d[1] <= max(np.finfo(float).eps, 1e-12 * d[0]):
-        raise ValueError("alignment is not possible: the positions lie on a line (degenerate covariance)")
+    # relative: the fit does not depend on the units, so neither does the test (a motion of
+    # 1e-8 units is no less determined than one of 1e8)
+    if not d[1] > LINE_TOLERANCE * d[0]:
+        raise ValueError(
+            f"alignment is not possible: the positions lie on a line (the covariance's second singular "
+            f"value is {d[1] / d[0]:.3g} of its first, at most {LINE_TOLERANCE:g}), so the rotation "
+            f"about that line is not determined")
     sign = np.ones(3)
     if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
         sign[2] = -1.0
     r = (u * sign) @ vt
     s = float(d @ sign) / (m.sxx / m.n) if with_scale else 1.0
     t = m.mean_y - s * (r @ m.mean_x)
-    return Alignment(r, from_matrix(r), t, s)
+    if origin is None:
+        return Alignment(r, from_matrix(r), t, s)
+    ox, oy = (np.asarray(o, np.float64).reshape(3).copy() for o in origin)
+    return Alignment(r, from_matrix(r), (oy - s * (r @ ox)) + t, s, ox, oy, t)
+
+
+LINE_TOLERANCE = 1e-12  # umeyama: positions on a line when σ₂ ≤ this × σ₁ of their covariance
 
 
 def fit(ref, est, method="sim3", n_to_align=None):
@@ -493,18 +546,26 @@ def fit(ref, est, method="sim3", n_to_align=None):
     if method == "none":
         return IDENTITY
     k = slice(None) if n_to_align is None else slice(0, int(n_to_align))
-    return fit_moments(Moments.of(est.pos[k], ref.pos[k]), method)
+    x, y = _c64(est.pos[k]), _c64(ref.pos[k])
+    if method == "scale" or x.shape[0] == 0:
+        return fit_moments(Moments.of(x, y), method)
+    origin = x[0].copy(), y[0].copy()
+    return fit_moments(Moments.of(x - origin[0], y - origin[1]), method, origin)
 
 
-def fit_moments(moments, method="sim3"):
+def fit_moments(moments, method="sim3", origin=None):
     """:func:`fit` from the :class:`Moments` of the (estimate, reference) positions, e.g. merged
-    chunk by chunk."""
+    chunk by chunk; with `origin` (an estimate and a reference position), the moments of the
+    positions less those (see :func:`umeyama`)."""
     if method not in ALIGNMENTS:
         raise ValueError(f"unknown alignment {method!r}; expected one of {ALIGNMENTS}")
     if method == "none":
         return IDENTITY
-    a = umeyama(moments, with_scale=method != "se3")
-    return Alignment(IDENTITY.r, IDENTITY.q, IDENTITY.t, a.s) if method == "scale" else a
+    if method == "scale":  # evo's correct_scale: s x, about the origin of the coordinates
+        if origin is not None:
+            raise ValueError("a scale correction is fitted about the origin of the coordinates (no origin)")
+        return Alignment(IDENTITY.r, IDENTITY.q, IDENTITY.t, umeyama(moments).s)
+    return umeyama(moments, with_scale=method != "se3", origin=origin)
 
 
 def align(ref, est, method="sim3", n_to_align=None):
@@ -892,11 +953,16 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
     _relation(relation)
     ref, est = associate(ref, est, t_max_diff, t_offset, interpolate)
     a = fit(ref, est, align, n_to_align)
-    est = _moved(est, a)
+    # the errors about the alignment's origins (exact far from the origin of the coordinates)
+    ref_l, est_l = a.frame(ref, est)
     if metric == "ape":
-        errors = ape(ref, est, relation)
+        errors = ape(ref_l, est_l, relation)
         index, i0 = np.arange(errors.size), None
     else:
-        errors, i0, index = rpe(ref, est, relation, delta, delta_unit, all_pairs)
+        errors, i0, index = rpe(ref_l, est_l, relation, delta, delta_unit, all_pairs)
+    if a.origin_y is not None:
+        est = est_l.replace(pos=est_l.pos + a.origin_y)  # = a.apply(est)
+    else:
+        est = est_l
     t = None if ref.t is None else ref.t[_as_slice(index)]  # APE, RPE in frames: a view
     return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])
