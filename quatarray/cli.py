@@ -696,8 +696,13 @@ def build_parser():
     s.set_defaults(func=cmd_bench)
 
     s = sub.add_parser("eval", parents=[io_opts], help="compare an estimated pose stream with a reference (APE, RPE) as evo does",
-                       description="Pose arrays (.npy/.zarr, (N, 8) rows t x y z qw qx qy qz, or (N, 7) without t) "
-                                   "are read as pose streams too (into memory).")
+                       description="Pose arrays (.npy/.zarr of floats, (N, 8) rows t x y z qw qx qy qz, or (N, 7) "
+                                   "without t) are read as pose streams too. Association: nearest times (evo's "
+                                   "--sync_method nearest_time), or --interpolate: evo's --sync_method interpolation "
+                                   "(rule evo, the default: the stream with more poses resampled by slerp and lerp at "
+                                   "the matched times of the other, so the pairs are the nearest-time ones) or rule "
+                                   "spline (the estimate resampled by quatarray's Bezier spline at every reference "
+                                   "time inside its span).")
     s.add_argument("REF")
     s.add_argument("EST")
     s.add_argument("--metric", choices=("ape", "rpe"), default="ape", help="absolute or relative pose error (default ape)")
@@ -712,10 +717,16 @@ def build_parser():
     s.add_argument("--t-max-diff", type=_positive, default=0.01, metavar="S",
                    help="largest time difference of an associated pair (default 0.01 s)")
     s.add_argument("--t-offset", type=float, default=0.0, metavar="S", help="added to the estimate's times")
-    s.add_argument("--interpolate", action="store_true",
-                   help="resample the estimate at the reference times instead of nearest pairs")
-    s.add_argument("--out", metavar="ERRORS", help="per-pose errors with times (csv, parquet)")
-    s.add_argument("--plot", metavar="OUT.png", help="errors over time and the aligned trajectories (needs matplotlib)")
+    s.add_argument("--interpolate", nargs="?", const="evo", choices=("evo", "spline"), default=None, metavar="RULE",
+                   help="resample one stream at the other's times instead of nearest pairs: evo (the default "
+                        "RULE, evo's --sync_method interpolation: the denser stream by slerp at the sparser one's "
+                        "matched times) or spline (the estimate by the Bezier spline at every reference time in "
+                        "its span); needs times")
+    s.add_argument("--out", metavar="ERRORS",
+                   help="per-pose errors with times (csv, parquet; .npy: the errors alone, shape (N,))")
+    s.add_argument("--plot", metavar="OUT.png",
+                   help="errors over time and the (aligned) trajectories; the extension names the format "
+                        "(.png, .pdf, .svg …; needs matplotlib)")
     s.add_argument("--json", metavar="FILE", help="the statistics as JSON")
     s.set_defaults(func=cmd_eval)
 

@@ -42,16 +42,24 @@ ALIGN_TITLES = {"none": "not aligned", "se3": "SE(3) Umeyama alignment", "sim3":
 # reading
 
 
+POSE_LAYOUTS = "floats of shape (N, 8), t x y z qw qx qy qz a row, or (N, 7), x y z qw qx qy qz"
+
+
 def pose_array(path, name=None):
-    """A memory-mapped (npy) or lazy (zarr) pose array ``(N, 8)`` or ``(N, 7)``, or None if `path`
-    is not an npy/zarr file of that shape."""
+    """A memory-mapped (npy) or lazy (zarr) pose array ``(N, 8)`` or ``(N, 7)`` of floats, or None
+    if `path` is no npy/zarr array (a file numpy cannot read is left to the stream readers, which
+    say what is wrong). An array of another shape or dtype is a :class:`DataError` naming eval's
+    layouts (:data:`POSE_LAYOUTS`), its shape and its dtype."""
     from .io.formats import is_zarr
 
     name = name or path
     if is_zarr(path):
         from .io.readers import import_zarr
 
-        arr = import_zarr(name).open_array(path, mode="r")
+        try:
+            arr = import_zarr(name).open_array(path, mode="r")
+        except Exception:  # not a zarr array: the stream readers say what it is
+            return None
     elif str(path).lower().endswith(".npy") and os.path.isfile(path):
         try:
             arr = np.load(path, mmap_mode="r")
@@ -59,11 +67,13 @@ def pose_array(path, name=None):
             return None
     else:
         return None
-    if len(arr.shape) == 2 and arr.shape[1] in (7, 8) and np.dtype(arr.dtype).kind == "f":
+    dtype = np.dtype(arr.dtype)
+    if len(arr.shape) == 2 and arr.shape[1] in (7, 8) and dtype.kind == "f" and dtype.fields is None:
         if arr.shape[0] == 0:
             raise DataError(f"{name}: no rows")
         return arr
-    return None
+    raise DataError(f"{name}: eval reads a pose array as {POSE_LAYOUTS}; this one holds {dtype} "
+                    f"of shape {tuple(arr.shape)}")
 
 
 def _poses_of_rows(rows, name, row0=0):
@@ -78,8 +88,11 @@ def _poses_of_rows(rows, name, row0=0):
     return T.Poses(t, np.ascontiguousarray(rows[:, k:k + 3]), normalize(np.ascontiguousarray(rows[:, k + 3:])))
 
 
-def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", err=None):
+def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", err=None, locate=False):
     """The whole pose stream of a file as :class:`~quatarray.trajectory.Poses`.
+
+    With `locate`, also ``where(i)``: the place of pose i in the file for a message
+    (``"traj.txt:12"``; ``"traj.npy: row 11"``), rows dropped with ``on_invalid="drop"`` counted.
 
     Examples
     --------
@@ -93,14 +106,26 @@ def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", er
     """
     arr = pose_array(path) if fmt in ("auto", "npy") else None
     if arr is not None:
-        return _poses_of_rows(arr[:], path)
+        p = _poses_of_rows(arr[:], path)
+        return (p, lambda i: f"{path}: row {i}") if locate else p
     kw = {} if chunk is None else {"chunk": chunk}
     reader = open_stream(path, fmt, kind="quat", layout=layout, on_invalid=on_invalid, **kw)
     if not reader.has_pos:
         raise DataError(f"{path}: no positions; eval compares pose streams (position and rotation), "
                         f"e.g. TUM, EuRoC, KITTI, or csv with columns t x y z qw qx qy qz")
     clean = Cleaner(reader, on_invalid)
-    chunks = [c for c in (clean(c) for c in reader) if len(c)]
+    chunks, rows = [], []  # rows: the reader's rows of the poses each chunk keeps
+    for c in reader:
+        ch, good = clean.check(c)
+        if good.all():
+            rows.append(range(c.row0, c.row0 + len(c)))
+        else:
+            keep = np.flatnonzero(good)
+            clean.dropped += good.size - keep.size
+            ch = ch.take(keep)
+            rows.append(c.row0 + keep)
+        if len(ch):
+            chunks.append(ch)
     if not chunks:
         raise DataError(f"{path}: no valid rows left")
     whole = concat(chunks)
@@ -108,18 +133,29 @@ def read_poses(path, fmt="auto", layout=None, chunk=None, on_invalid="error", er
         reader.say(err)
         clean.report(err)
     t = None if whole.t is None else np.asarray(whole.t, dtype=np.float64)
-    return T.Poses(t, np.ascontiguousarray(whole.pos, dtype=np.float64), np.ascontiguousarray(whole.data, np.float64))
+    p = T.Poses(t, np.ascontiguousarray(whole.pos, dtype=np.float64), np.ascontiguousarray(whole.data, np.float64))
+    if not locate:
+        return p
+
+    def where(i):
+        for r in rows:
+            if i < len(r):
+                return reader.where(int(r[i]))
+            i -= len(r)
+        raise IndexError(i)
+    return p, where
 
 
 def _read_both(ref_path, est_path, err, **kw):
-    """Both streams, read in two threads (the text parser releases the GIL); their notes
-    go to `err` in order, reference first."""
+    """Both streams, read in two threads (the text parser releases the GIL), each as
+    ``(poses, where)`` (see :func:`read_poses`); their notes go to `err` in order, reference
+    first."""
     import io as _io
     from concurrent.futures import ThreadPoolExecutor
 
     notes = [_io.StringIO(), _io.StringIO()]
     with ThreadPoolExecutor(2) as pool:
-        jobs = [pool.submit(read_poses, p, err=n, **kw) for p, n in zip((ref_path, est_path), notes)]
+        jobs = [pool.submit(read_poses, p, err=n, locate=True, **kw) for p, n in zip((ref_path, est_path), notes)]
         try:
             ref = jobs[0].result()
         finally:
@@ -366,7 +402,7 @@ def error_writer(path, metric, timed):
     from .io.formats import output_format
 
     if output_format(path) == "npy":
-        return open_writer(path, ["error"]), True
+        return open_writer(path, ["error"], core=()), True  # shape (N,)
     fields = (["pose0"] if metric == "rpe" else []) + ["pose", "error"]
     return open_writer(path, fields, time=timed), False
 
@@ -374,7 +410,7 @@ def error_writer(path, metric, timed):
 def _write_rows(writer, errors_only, cols, t):
     """One block of errors (`cols`: [pose0,] pose, error) to a writer of :func:`error_writer`."""
     if errors_only:
-        writer.write(np.ascontiguousarray(cols[-1], np.float64)[:, None])
+        writer.write(np.ascontiguousarray(cols[-1], np.float64))
     else:
         writer.write(np.column_stack([np.asarray(c, np.float64) for c in cols]), t)
 
@@ -387,10 +423,16 @@ def write_errors(path, result):
         _write_rows(w, errors_only, cols, result.t)
 
 
-def plot(path, result, ref_name, est_name):
-    """Errors over time (or pose index) and the aligned trajectories seen from above (x, y)."""
+def plot(path, result, ref_name, est_name, aligned=None):
+    """Errors over time (or pose index) and the (aligned) trajectories seen from above (x, y), in
+    the image format `path`'s extension names (``.png``, ``.pdf``, ``.svg`` …).
+
+    `aligned`: whether the estimate's legend says "(aligned)" (default: when the result's
+    alignment is not the identity)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from .plot import _save
 
     fig = Figure(figsize=(11, 4.5))
     FigureCanvasAgg(fig)
@@ -404,16 +446,16 @@ def plot(path, result, ref_name, est_name):
     ax1.legend(loc="upper right")
     s = max(1, len(result.ref) // 20_000)
     ax2.plot(result.ref.pos[::s, 0], result.ref.pos[::s, 1], lw=0.8, label=os.path.basename(ref_name))
-    ax2.plot(result.est.pos[::s, 0], result.est.pos[::s, 1], lw=0.8, label=os.path.basename(est_name) + " (aligned)")
+    if aligned is None:
+        aligned = result.alignment is not T.IDENTITY
+    ax2.plot(result.est.pos[::s, 0], result.est.pos[::s, 1], lw=0.8,
+             label=os.path.basename(est_name) + (" (aligned)" if aligned else ""))
     ax2.set_xlabel("x (m)")
     ax2.set_ylabel("y (m)")
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.legend(loc="best")
     fig.tight_layout()
-    folder, base = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(folder, f".{base}.tmp")
-    fig.savefig(tmp, format="png")
-    os.replace(tmp, path)
+    _save(fig, path)
 
 
 # --------------------------------------------------------------------------
@@ -458,10 +500,15 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
         if o is not None:
             check_output(o, [ref_path, est_path], force)
     if plot_path is not None:
-        from .plot import have_matplotlib
+        from .plot import have_matplotlib, image_format
 
         if not have_matplotlib():
             raise UsageError("--plot needs matplotlib (pip install matplotlib)")
+        image_format(plot_path)  # an extension matplotlib does not write: before the reading
+    if interpolate is True:
+        interpolate = "evo"
+    if interpolate not in (None, False) + T.INTERPOLATIONS:
+        raise UsageError(f"--interpolate: unknown rule {interpolate!r}; expected one of {', '.join(T.INTERPOLATIONS)}")
     options = dict(metric=metric, align=align, relation=relation, delta=delta, delta_unit=delta_unit,
                    all_pairs=all_pairs, n_to_align=n_to_align, t_max_diff=t_max_diff, t_offset=t_offset,
                    interpolate=interpolate)
@@ -473,15 +520,22 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
             result = run_chunked(*files, metric, align, relation, delta, all_pairs, n_to_align, t_max_diff,
                                  t_offset, chunk or DEFAULT_CHUNK, out, keep_errors=False)
         if result is None:
-            ref, est = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout, chunk=chunk,
-                                  on_invalid=on_invalid)
-            result = T.evaluate(ref, est, **options)
+            (ref, ref_where), (est, est_where) = _read_both(ref_path, est_path, stderr, fmt=fmt, layout=layout,
+                                                            chunk=chunk, on_invalid=on_invalid)
+            try:
+                result = T.evaluate(ref, est, **options)
+            except T.TimeOrderError as exc:  # named by the file's line
+                where = ref_where if exc.stream == "reference" else est_where
+                t = (ref if exc.stream == "reference" else est).t
+                raise DataError(f"{where(exc.row)}: time {float(t[exc.row])!r} is before the previous one "
+                                f"({float(t[exc.row - 1])!r}); --interpolate needs the times of the stream it "
+                                f"resamples in order") from None
             if out is not None:
                 write_errors(out, result)
     except ValueError as exc:
         raise DataError(f"{est_path} against {ref_path}: {str(exc).splitlines()[0]}") from None
     if plot_path is not None:
-        plot(plot_path, result, ref_path, est_path)
+        plot(plot_path, result, ref_path, est_path, aligned=align != "none")
     head = title(result, align, n_to_align, delta, delta_unit, all_pairs)
     report(result, head, stdout)
     if json_path is not None:

@@ -10,9 +10,11 @@ numbers (within 1e-9 relative) on the same inputs:
 
 1. :func:`associate` pairs the poses by time (evo's
    ``associate_trajectories``: nearest within ``t_max_diff`` after
-   ``t_offset``), or resamples the estimate at the reference times
-   (``interpolate=True``: :func:`quatarray.spline` on rotations, linear on
-   positions). Streams without times are paired pose by pose.
+   ``t_offset``), or resamples one stream at the other's times:
+   ``interpolate=True`` (``"evo"``) is evo's ``--sync_method interpolation``
+   (the denser stream by slerp at the sparser one's matched times),
+   ``interpolate="spline"`` the estimate at the reference times by
+   :func:`quatarray.spline`. Streams without times are paired pose by pose.
 2. :func:`umeyama` / :func:`align` fit Umeyama's least-squares similarity
    (``"sim3"``), rigid motion (``"se3"``), scale only (``"scale"``, evo's
    ``correct_scale`` alone) or nothing (``"none"``). The fit needs only the
@@ -182,6 +184,40 @@ def _match_sorted(s1, s2, off, max_diff, i1, i2):
     return m
 
 
+INTERPOLATIONS = ("evo", "spline")
+
+
+class TimeOrderError(ValueError):
+    """Times that decrease where interpolation needs them in order: `stream` (``"reference"`` or
+    ``"estimate"``) and `row` (the index of the first pose whose time is before its predecessor's)
+    say where, for a message that names the file's line."""
+
+    def __init__(self, message, stream, row):
+        super().__init__(message)
+        self.stream, self.row = stream, row
+
+
+def _rule(interpolate):
+    """The interpolation rule `interpolate` names: None (nearest pairs), "evo" or "spline"."""
+    if interpolate is None or interpolate is False:
+        return None
+    if interpolate is True:
+        return "evo"
+    if interpolate not in INTERPOLATIONS:
+        raise ValueError(f"unknown interpolation {interpolate!r}; expected one of {INTERPOLATIONS}")
+    return interpolate
+
+
+def _check_order(t, stream, strict=False):
+    d = np.diff(t)
+    bad = d <= 0 if strict else d < 0
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        raise TimeOrderError(
+            f"interpolation needs the {stream}'s times in order: row {i} (time {float(t[i])!r}) is before "
+            f"row {i - 1} (time {float(t[i - 1])!r})", stream, i)
+
+
 def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
     """Pair the poses of two streams by time.
 
@@ -194,43 +230,67 @@ def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
         Largest time difference of a pair (seconds), as evo's ``t_max_diff``.
     t_offset : float
         Added to the estimate's times before matching (evo's ``t_offset``).
-    interpolate : bool
-        Instead of nearest pairs: the reference poses whose times lie inside
-        the estimate's (offset) time span, with the estimate resampled at
-        those times (:func:`quatarray.spline` on rotations, linear on
-        positions; of repeated estimate times the first is kept).
+    interpolate : {False, True, "evo", "spline"}
+        False: nearest pairs (evo's ``--sync_method nearest_time``).
+        True or ``"evo"``: evo's ``--sync_method interpolation``: the poses of
+        the shorter stream (the estimate when the lengths are equal) that have
+        a nearest pair as above, with the other stream resampled at their
+        times (positions linearly, rotations by slerp between its two poses
+        around each time; times outside its span take its first or last pose).
+        ``"spline"``: the reference poses whose times lie inside the
+        estimate's (offset) time span, with the estimate resampled at those
+        times (:func:`quatarray.spline` on rotations, linear on positions; of
+        repeated estimate times the first is kept). The resampled stream's
+        times must not decrease.
 
     Returns
     -------
     ref, est : Poses
-        Equal lengths; each keeps its own times. Pairs are in the order of
-        the shorter stream (of the estimate when the lengths are equal), as
-        evo's ``associate_trajectories``.
+        Equal lengths; each keeps its own times (a resampled stream: the
+        times it was resampled at, in its own time frame). Pairs are in the
+        order of the shorter stream (of the estimate when the lengths are
+        equal), as evo's ``associate_trajectories``.
 
     Raises
     ------
     ValueError
-        No pair found; lengths that differ for streams without times.
+        No pair found; lengths that differ for streams without times;
+        interpolation of streams without times; times that decrease in the
+        stream resampled (:class:`TimeOrderError`, naming the row).
 
     Examples
     --------
     >>> import numpy as np
     >>> from quatarray.trajectory import poses, associate
     >>> q = np.tile([1.0, 0, 0, 0], (4, 1))
-    >>> ref = poses([0.0, 1.0, 2.0, 3.0], np.zeros((4, 3)), q)
+    >>> ref = poses([0.0, 1.0, 2.0, 3.0], np.c_[np.arange(4.0), np.zeros((4, 2))], q)
     >>> est = poses([1.004, 2.05, 2.999], np.zeros((3, 3)), q[:3])
     >>> r, e = associate(ref, est)
     >>> r.t, e.t
     (array([1., 3.]), array([1.004, 2.999]))
+    >>> r, e = associate(ref, est, interpolate=True)  # evo's: the reference at the estimate's times
+    >>> r.t, r.pos[:, 0]
+    (array([1.004, 2.999]), array([1.004, 2.999]))
     """
+    rule = _rule(interpolate)
     if ref.t is None or est.t is None:
+        if rule is not None:
+            which = "the reference and the estimate have" if ref.t is None and est.t is None else \
+                f"the {'reference' if ref.t is None else 'estimate'} has"
+            raise ValueError(f"interpolation needs times; {which} none (streams without times are compared "
+                             f"pose by pose: leave interpolation out)")
         if len(ref) != len(est):
             raise ValueError(f"streams without times are compared pose by pose: the reference has "
                              f"{len(ref)} poses, the estimate {len(est)}")
         return ref, est
-    if interpolate:
+    if rule == "spline":
         return _resample(ref, est, t_offset)
     second_longer = len(est) > len(ref)
+    if rule == "evo":  # the stream resampled must be in order (evo's would give wrong poses)
+        long, name = (est, "estimate") if second_longer else (ref, "reference")
+        _check_order(long.t, name)
+        if len(long) < 2:
+            raise ValueError(f"interpolation needs at least 2 poses of the {name}, got {len(long)}")
     if second_longer:
         i_ref, i_est = match_times(ref.t, est.t, t_max_diff, t_offset)
     else:
@@ -238,7 +298,36 @@ def associate(ref, est, t_max_diff=0.01, t_offset=0.0, interpolate=False):
     if i_ref.size == 0:
         raise ValueError(f"no matching times between the reference and the estimate with "
                          f"t_max_diff {t_max_diff} s and t_offset {t_offset} s")
+    if rule == "evo":
+        if second_longer:
+            ref = ref.take(_as_slice(i_ref))
+            return ref, _interpolated(est, ref.t - t_offset)
+        est = est.take(_as_slice(i_est))
+        return _interpolated(ref, est.t + t_offset), est
     return ref.take(_as_slice(i_ref)), est.take(_as_slice(i_est))
+
+
+_EVO_EPS = 4.0 * np.finfo(np.float64).eps  # evo's quaternion_slerp: keys nearer than this give the first
+
+
+def _interpolated(p, times):
+    """The poses of `p` (times in order) at `times`, as evo's ``PoseTrajectory3D.interpolate``:
+    positions by lerp, rotations by slerp between the poses either side (of repeated times the
+    first), times outside the span clamped to the first or last pose."""
+    from .interpolation import slerp  # the engine only where a stream is interpolated (CLI start-up)
+
+    n = len(p)
+    idx = np.clip(np.searchsorted(p.t, times, side="left"), 1, n - 1)
+    t_prev, t_next = p.t[idx - 1], p.t[idx]
+    dt = t_next - t_prev
+    frac = np.clip(np.where(dt > 0.0, (times - t_prev) / np.where(dt > 0.0, dt, 1.0), 0.0), 0.0, 1.0)
+    pos = p.pos[idx - 1] + frac[:, None] * (p.pos[idx] - p.pos[idx - 1])
+    q0, q1 = normalize(p.q[idx - 1]), normalize(p.q[idx])
+    d = np.vecdot(q0, q1)  # the dot product as evo's numpy.dot, rounded the same way
+    q = slerp(q0, np.where((d < 0.0)[:, None], -q1, q1), frac, shortest=False)  # evo's flip: d < 0 only
+    first = (frac == 0.0) | (np.abs(np.abs(d) - 1.0) < _EVO_EPS)
+    q = np.where(first[:, None], q0, np.where((frac == 1.0)[:, None], q1, q))
+    return Poses(np.array(times, dtype=np.float64), pos, q)
 
 
 def _resample(ref, est, t_offset):
@@ -247,8 +336,7 @@ def _resample(ref, est, t_offset):
     te = est.t + t_offset
     keep = np.concatenate([[True], np.diff(te) > 0])
     if not keep.all():
-        if np.any(np.diff(te) < 0):
-            raise ValueError("interpolation needs the estimate's times in increasing order")
+        _check_order(te, "estimate")
         te, est = te[keep], est.take(np.flatnonzero(keep))
     inside = np.flatnonzero((ref.t >= te[0]) & (ref.t <= te[-1]))
     if te.size < 2 or inside.size == 0:
@@ -930,7 +1018,8 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
     n_to_align : int, optional
         Fit the alignment on the first n associated poses only.
     t_max_diff, t_offset, interpolate
-        Association, see :func:`associate`.
+        Association, see :func:`associate` (`interpolate`: False, True or
+        ``"evo"``, ``"spline"``).
 
     Returns
     -------

@@ -177,3 +177,298 @@ def test_degenerate_motions_say_what_is_wrong(rng, what, pos, message):
         T.umeyama(x, y)
     with pytest.raises(ValueError, match=r"all positions are equal in the reference"):
         T.umeyama(rng.normal(size=(30, 3)), np.ones((30, 3)))
+
+
+# ---- item 15: --interpolate is evo's --sync_method interpolation (the spline rule by name) ----
+
+
+def _smooth(t, rng, shift=0.0):
+    w = np.c_[np.sin(0.7 * t), np.cos(0.5 * t), 0.3 * t] + shift
+    pos = np.c_[t, np.sin(t) * 3, 0.2 * np.abs(t) ** 1.5] + rng.normal(scale=0.01, size=(t.size, 3))
+    return pos, qa.multiply(qa.from_rotvec(w), qa.from_rotvec(rng.normal(scale=0.01, size=(t.size, 3))))
+
+
+def _sync_case(rng, kind):
+    """(ref, est, t_offset): streams at different rates, jittered, the estimate offset in time."""
+    tr = np.arange(0.0, 30.0, 1 / 30) + rng.uniform(-0.002, 0.002, 900)
+    rates = {"denser est": 1 / 100, "sparser est": 1 / 20, "equal": 1 / 30}
+    te = np.arange(0.3, 29.0, rates[kind]) + rng.uniform(-0.003, 0.003, np.arange(0.3, 29.0, rates[kind]).size)
+    if kind == "equal":
+        te = te[:tr.size] if te.size >= tr.size else np.r_[te, te[-1] + 0.03 * np.arange(1, tr.size - te.size + 1)]
+    off = 0.0137
+    pr, qr = _smooth(tr, rng)
+    pe, qe = _smooth(te + off, rng, 0.01)
+    return T.poses(tr, pr, qr), T.poses(te, 1.3 * pe + [1.0, 2.0, 3.0], qe), off
+
+
+def _evo_traj(p):
+    from evo.core.trajectory import PoseTrajectory3D
+
+    return PoseTrajectory3D(p.pos.copy(), p.q.copy(), p.t.copy())
+
+
+def _evo_run(ref, est, metric, align, relation, t_max_diff, t_offset, **rpe):
+    from evo.core import metrics, sync
+    from evo.core.sync_method import SyncMethod
+
+    r, e = sync.associate_trajectories(_evo_traj(ref), _evo_traj(est), sync_method=SyncMethod.interpolation,
+                                       max_diff=t_max_diff, offset_2=t_offset)
+    if align != "none":
+        e.align(r, correct_scale=align == "sim3")
+    rel = {"trans": metrics.PoseRelation.translation_part, "rot": metrics.PoseRelation.rotation_angle_deg,
+           "full": metrics.PoseRelation.full_transformation}[relation]
+    m = metrics.APE(rel) if metric == "ape" else metrics.RPE(rel, **rpe)
+    m.process_data((r, e))
+    return r, e, m
+
+
+@pytest.mark.parametrize("kind", ["denser est", "sparser est", "equal"])
+@pytest.mark.parametrize("metric, align, relation", [
+    ("ape", "none", "trans"), ("ape", "sim3", "rot"), ("ape", "se3", "full"), ("rpe", "sim3", "trans"),
+    ("rpe", "none", "rot"), ("rpe", "se3", "full")])
+def test_interpolate_equals_evo(rng, kind, metric, align, relation):
+    ref, est, off = _sync_case(rng, kind)
+    er, ee, m = _evo_run(ref, est, metric, align, relation, 0.02, off)
+    r = T.evaluate(ref, est, metric, align=align, relation=relation, t_max_diff=0.02, t_offset=off,
+                   interpolate=True)
+    assert len(r.ref) == er.num_poses and r.errors.size == m.error.size
+    np.testing.assert_array_equal(r.ref.t, er.timestamps)
+    np.testing.assert_array_equal(r.est.t, ee.timestamps)
+    np.testing.assert_allclose(r.errors, m.error, rtol=1e-9, atol=1e-12)
+    for k, v in m.get_all_statistics().items():
+        assert r.stats[k] == pytest.approx(v, rel=1e-9), k
+    assert T.evaluate(ref, est, metric, align=align, relation=relation, t_max_diff=0.02, t_offset=off,
+                      interpolate="evo").stats == r.stats
+
+
+def test_interpolate_evo_edge_cases_equal_evo(rng):
+    """Repeated times in the stream resampled, times outside its span (clamped), keys nearer than
+    evo's slerp threshold, keys a quarter turn apart on the 4-sphere (p·q = 0) and q vs −q."""
+    n = 200
+    tr = np.arange(n) * 0.1
+    pos, q = _smooth(tr, rng)
+    q[50] = q[49]  # identical keys
+    q[51] = -q[50]  # q vs -q
+    q[80] = qa.multiply(q[79], [np.cos(1e-9), np.sin(1e-9), 0, 0])  # nearer than 4 eps on S³
+    q[120] = qa.multiply(q[119], [0.0, 1.0, 0.0, 0.0])  # a half turn: p·q = 0
+    tr[30] = tr[29]  # a repeated reference time
+    ref = T.poses(tr, pos, q)
+    te = np.r_[-0.004, np.sort(rng.uniform(0, tr[-1], 60)), tr[-1] + 0.004, tr[29] + 1e-4, 5.0, 12.0 + 0.003]
+    te.sort()
+    pe, qe = _smooth(te, rng)
+    est = T.poses(te, pe, qe)
+    er, ee, m = _evo_run(ref, est, "ape", "none", "full", 0.01, 0.0)
+    r = T.evaluate(ref, est, "ape", relation="full", interpolate=True)
+    assert r.errors.size == m.error.size
+    np.testing.assert_allclose(r.ref.pos, er.positions_xyz, rtol=0, atol=0)
+    dots = np.abs(np.sum(r.ref.q * er.orientations_quat_wxyz, axis=1))
+    assert np.all(dots > 1 - 1e-15)
+    np.testing.assert_allclose(r.errors, m.error, rtol=1e-9, atol=1e-13)
+
+
+def test_interpolate_spline_rule_by_name(rng):
+    ref, est, off = _sync_case(rng, "sparser est")
+    r = T.evaluate(ref, est, "ape", relation="rot", t_offset=off, interpolate="spline")
+    inside = (ref.t >= est.t[0] + off) & (ref.t <= est.t[-1] + off)
+    assert r.errors.size == np.count_nonzero(inside)  # every reference time inside the estimate's span
+    np.testing.assert_array_equal(r.est.t, r.ref.t - off)
+    with pytest.raises(ValueError, match="unknown interpolation 'cubic'"):
+        T.evaluate(ref, est, interpolate="cubic")
+
+
+# ---- the command line: items 7, 15, 17, 18, 19 ----
+
+
+def _cli(capsys, *argv):
+    from quatarray.cli import main
+
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def _tum(path, p):
+    np.savetxt(path, np.c_[p.t, p.pos, p.q[:, 1:], p.q[:, :1]], fmt="%.17g")
+    return path
+
+
+def test_cli_interpolate_equals_evo_on_files(rng, tmp_path, capsys):
+    """``eval --interpolate`` on TUM files: evo's pairs and statistics; ``--interpolate spline``
+    the spline rule (other pairs)."""
+    import json
+
+    from evo.tools import file_interface
+
+    ref, est, off = _sync_case(rng, "denser est")
+    rp, ep = _tum(tmp_path / "ref.txt", ref), _tum(tmp_path / "est.txt", est)
+    from evo.core import metrics, sync
+    from evo.core.sync_method import SyncMethod
+
+    r, e = sync.associate_trajectories(file_interface.read_tum_trajectory_file(str(rp)),
+                                       file_interface.read_tum_trajectory_file(str(ep)),
+                                       sync_method=SyncMethod.interpolation, max_diff=0.01, offset_2=off)
+    e.align(r, correct_scale=True)
+    m = metrics.APE(metrics.PoseRelation.rotation_angle_deg)
+    m.process_data((r, e))
+    for rule in ([], ["evo"]):
+        rc, out, err = _cli(capsys, "eval", rp, ep, "--align", "sim3", "--pose-relation", "rot", "--t-offset", off,
+                            "--interpolate", *rule, "--json", tmp_path / "s.json", "--force")
+        assert rc == 0 and err == "", err
+        got = json.loads((tmp_path / "s.json").read_text())
+        assert got["pairs"] == m.error.size and got["options"]["interpolate"] == "evo"
+        for k, v in m.get_all_statistics().items():
+            assert got["stats"][k] == pytest.approx(v, rel=1e-9), k
+    rc, out, err = _cli(capsys, "eval", rp, ep, "--t-offset", off, "--interpolate", "spline", "--json",
+                        tmp_path / "s.json", "--force")
+    got = json.loads((tmp_path / "s.json").read_text())
+    assert rc == 0 and got["options"]["interpolate"] == "spline"
+    assert got["pairs"] == np.count_nonzero((ref.t >= est.t[0] + off) & (ref.t <= est.t[-1] + off))
+    rc, _, err = _cli(capsys, "eval", rp, ep, "--interpolate", "cubic")
+    assert rc == 2 and "invalid choice: 'cubic'" in err
+
+
+@pytest.mark.parametrize("ext, magic", [(".pdf", b"%PDF"), (".svg", b"<?xml"), (".png", b"\x89PNG")])
+def test_cli_eval_plot_writes_the_format_its_extension_names(rng, tmp_path, capsys, ext, magic):
+    pytest.importorskip("matplotlib")
+    ref, est, _ = _sync_case(rng, "equal")
+    rp, ep = _tum(tmp_path / "ref.txt", ref), _tum(tmp_path / "est.txt", est)
+    out = tmp_path / f"p{ext}"
+    rc, _, err = _cli(capsys, "eval", rp, ep, "--t-max-diff", "0.02", "--plot", out)
+    assert rc == 0, err
+    assert out.read_bytes().startswith(magic)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary left
+    rc, _, err = _cli(capsys, "eval", rp, ep, "--plot", tmp_path / "p.xyz")
+    assert rc == 2 and "cannot tell the image format from the extension '.xyz'" in err
+    assert not (tmp_path / "p.xyz").exists()
+
+
+@pytest.mark.parametrize("align, legend", [("none", "est.txt"), ("se3", "est.txt (aligned)")])
+def test_eval_plot_legend_says_aligned_only_when_aligned(rng, tmp_path, align, legend):
+    pytest.importorskip("matplotlib")
+    from unittest import mock
+
+    from matplotlib.axes import Axes
+
+    from quatarray import evaluate
+
+    ref, est, _ = _sync_case(rng, "equal")
+    r = T.evaluate(ref, est, align=align, t_max_diff=0.02)
+    labels = []
+    real = Axes.plot
+
+    def spy(self, *a, **kw):
+        labels.append(kw.get("label"))
+        return real(self, *a, **kw)
+
+    with mock.patch.object(Axes, "plot", spy):
+        evaluate.plot(str(tmp_path / "p.svg"), r, "ref.txt", str(tmp_path / "est.txt"), aligned=align != "none")
+    assert labels[-1] == legend
+    with mock.patch.object(Axes, "plot", spy):
+        evaluate.plot(str(tmp_path / "q.svg"), r, "ref.txt", str(tmp_path / "est.txt"))  # told by the alignment
+    assert labels[-1] == legend
+
+
+@pytest.mark.parametrize("array, what", [
+    (lambda p: p.astype(np.int64), r"holds int64 of shape \(20, 8\)"),
+    (lambda p: np.c_[p, p[:, :1]], r"holds float64 of shape \(20, 9\)"),
+    (lambda p: p[:, 4:], r"holds float64 of shape \(20, 4\)"),
+])
+def test_cli_eval_names_its_pose_array_layouts(rng, tmp_path, capsys, array, what):
+    t = np.arange(20.0)
+    good = np.c_[t, rng.normal(size=(20, 3)), qa.random(20, rng=rng)]
+    np.save(tmp_path / "ref.npy", good)
+    np.save(tmp_path / "est.npy", array(good))
+    rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy")
+    assert rc == 1
+    assert err.strip().startswith(f"{tmp_path / 'est.npy'}: eval reads a pose array as floats of shape (N, 8), "
+                                  "t x y z qw qx qy qz a row, or (N, 7), x y z qw qx qy qz; this one holds"), err
+    import re
+    assert re.search(what, err) and "expected quaternions" not in err
+
+
+def test_cli_eval_interpolate_needs_times(rng, tmp_path, capsys):
+    good = np.c_[rng.normal(size=(20, 3)), qa.random(20, rng=rng)]
+    np.save(tmp_path / "a.npy", good)
+    for rule in ([], ["spline"]):
+        rc, _, err = _cli(capsys, "eval", tmp_path / "a.npy", tmp_path / "a.npy", "--interpolate", *rule)
+        assert rc == 1 and "interpolation needs times; the reference and the estimate have none" in err, err
+    with pytest.raises(ValueError, match="the estimate has none"):
+        T.associate(T.poses(np.arange(20.0), good[:, :3], good[:, 3:]), T.poses(None, good[:, :3], good[:, 3:]),
+                    interpolate=True)
+
+
+@pytest.mark.parametrize("rule", ["evo", "spline"])
+def test_cli_eval_unsorted_estimate_is_named_by_its_line(rng, tmp_path, capsys, rule):
+    ref, est, _ = _sync_case(rng, "denser est")
+    t = est.t.copy()
+    t[[40, 41]] = t[[41, 40]]
+    rp = _tum(tmp_path / "ref.txt", ref)
+    with open(tmp_path / "est.txt", "w") as f:
+        f.write("# timestamp tx ty tz qx qy qz qw\n")
+        np.savetxt(f, np.c_[t, est.pos, est.q[:, 1:], est.q[:, :1]], fmt="%.17g")
+    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est.txt", "--interpolate", rule)
+    assert rc == 1
+    assert err.strip() == (f"{tmp_path / 'est.txt'}:43: time {float(t[41])!r} is before the previous one "
+                           f"({float(t[40])!r}); "
+                           "--interpolate needs the times of the stream it resamples in order"), err
+    # with a dropped row before it, the line is still the file's
+    with open(tmp_path / "est2.txt", "w") as f:
+        f.write("# timestamp tx ty tz qx qy qz qw\n0 nan 0 0 0 0 0 1\n")
+        np.savetxt(f, np.c_[t, est.pos, est.q[:, 1:], est.q[:, :1]], fmt="%.17g")
+    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est2.txt", "--interpolate", rule, "--on-invalid", "drop")
+    assert rc == 1 and f"{tmp_path / 'est2.txt'}:44: time {float(t[41])!r}" in err, err
+
+
+def test_cli_eval_out_npy_is_one_dimensional(rng, tmp_path, capsys):
+    ref, est, _ = _sync_case(rng, "equal")
+    for name, p in (("ref", ref), ("est", est)):
+        np.save(tmp_path / f"{name}.npy", np.c_[p.t, p.pos, p.q])
+        _tum(tmp_path / f"{name}.txt", p)
+    for ext in ("npy", "txt"):  # the chunked pass over pose arrays, and the in-memory one
+        for metric in ("ape", "rpe"):
+            out = tmp_path / f"{metric}_{ext}.npy"
+            rc, _, err = _cli(capsys, "eval", tmp_path / f"ref.{ext}", tmp_path / f"est.{ext}", "--metric", metric,
+                              "--t-max-diff", "0.02", "--out", out)
+            assert rc == 0, err
+            e = np.load(out)
+            want = T.evaluate(ref, est, metric, t_max_diff=0.02).errors
+            assert e.shape == want.shape and e.ndim == 1
+            np.testing.assert_allclose(e, want, rtol=1e-12)
+
+
+def test_plain_tum_files_say_nothing(rng, tmp_path, capsys):
+    ref, est, _ = _sync_case(rng, "equal")
+    rp, ep = _tum(tmp_path / "ref.txt", ref), _tum(tmp_path / "est.txt", est)
+    rc, out, err = _cli(capsys, "eval", rp, ep, "--t-max-diff", "0.02")
+    assert rc == 0 and err == ""
+    # a guess is still said: headerless comma-separated numbers
+    (tmp_path / "c.csv").write_text("".join(",".join(repr(float(v)) for v in row) + "\n"
+                                            for row in np.c_[ref.t, ref.pos, ref.q]))
+    rc, out, err = _cli(capsys, "eval", tmp_path / "c.csv", ep, "--t-max-diff", "0.02")
+    assert rc == 0 and err.splitlines() == [
+        f"{tmp_path / 'c.csv'}: no column names: read as t x y z qw qx qy qz (scalar first); "
+        "choose with --layout xyzw or --format tum"]
+
+
+@pytest.mark.parametrize("text, line, shown", [
+    ("a\nb\nc\n", 1, "a"),
+    ("# times\n\none\n", 3, "one"),
+    ("t\n0.5\nx1\n", 3, "x1"),
+    ("time\nseconds\n0.5\n", 2, "seconds"),
+    ("0.5\n0.6\n\n0,7\n", 4, "0,7"),
+])
+def test_times_file_names_its_first_bad_line(tmp_path, capsys, text, line, shown):
+    from quatarray import io
+
+    p = tmp_path / "times.txt"
+    p.write_text(text)
+    with pytest.raises(io.DataError, match=rf"^times\.txt:{line}: not a number: '{shown}'"):
+        io.read_times(p, name="times.txt")
+    q = tmp_path / "q.csv"
+    q.write_text("t,qw,qx,qy,qz\n0,1,0,0,0\n1,0,1,0,0\n")
+    rc, _, err = _cli(capsys, "resample", q, tmp_path / "o.csv", "--times", p)
+    assert rc == 1 and err.startswith(f"{p}:{line}: not a number: '{shown}'"), err
+    assert "empty file" not in err
+    np.save(tmp_path / "k.npy", qa.identity(2))
+    rc, _, err = _cli(capsys, "resample", tmp_path / "k.npy", tmp_path / "o2.csv", "--rate", "4", "--in-times", p)
+    assert rc == 1 and err.startswith(f"{p}:{line}: not a number: '{shown}'"), err

@@ -169,6 +169,42 @@ def read_times(path, fmt="auto", name=None, order=None, locate=False):
     return (times, where) if locate else times
 
 
+def _names_time(text):
+    """Whether a header line names a time column (``t``, ``time``, ``timestamp [s]`` …)."""
+    return F.unquoted(text).split("[")[0].split("(")[0].strip().lower() in F.TIME_NAMES
+
+
+def _one_a_line(path, name):
+    """A text file of one time a line: the times and ``where(i)``. ``#`` comments and blank
+    lines are skipped, and a first line that is not a number when a number follows it (a
+    header such as ``t``); any other line that is not a number is named."""
+    out, lines = [], []
+    header = None  # (line number, text) of a first line that is not a number
+    with open(path, "r", encoding="utf-8-sig", errors="backslashreplace") as f:
+        for lineno, line in enumerate(f, 1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            try:
+                out.append(float(s))
+            except ValueError:
+                if out or header is not None:  # after the header or a time: bad data
+                    # two lines before the first time: the second is the bad one when the first names
+                    # the time column, else the first (a header is one line of names, not of data)
+                    bad = (lineno, s) if out or _names_time(header[1]) else header
+                    raise DataError(f"{name}:{bad[0]}: not a number: '{F.shown(bad[1])}' (a times file "
+                                    f"holds one time a line, after at most one header line)") from None
+                header = (lineno, s)
+                continue
+            lines.append(lineno)
+    if not out:
+        if header is not None:
+            raise DataError(f"{name}:{header[0]}: not a number: '{F.shown(header[1])}' (a times file holds "
+                            f"one time a line; this one has none)")
+        raise F.empty(name)
+    return np.array(out), lambda i: f"{name}:{lines[i]}"
+
+
 def _times_and_where(path, fmt, name):
     """The times of a file and ``where(i)``, the ``file:line`` (or row) of time i."""
     if not os.path.exists(path):
@@ -197,20 +233,7 @@ def _times_and_where(path, fmt, name):
             first = next((ln for ln in f if ln.strip() and not ln.lstrip().startswith(b"#")), b"")
         fields = first.replace(b",", b" ").split()
         if len(fields) == 1:
-            out, lines = [], []
-            with open(path, "r", encoding="utf-8-sig", errors="backslashreplace") as f:
-                for lineno, line in enumerate(f, 1):
-                    s = line.strip()
-                    if not s or s.startswith("#") or (not out and not is_number(s)):
-                        continue
-                    try:
-                        out.append(float(s))
-                    except ValueError:
-                        raise DataError(f"{name}:{lineno}: not a number: '{F.shown(s)}'") from None
-                    lines.append(lineno)
-            if not out:
-                raise F.empty(name)
-            return np.array(out), lambda i: f"{name}:{lines[i]}"
+            return _one_a_line(path, name)
     reader = open_stream(path, fmt, name=name)
     if not reader.has_time:
         raise DataError(f"{name}: has no time column")

@@ -106,8 +106,7 @@ class TextReader(Reader):
             if named is not None:
                 fmt = "tum" if [n.lower() for n in named] == F.TUM_NAMES else "csv"
             elif numeric and self.squeeze and len(fields) == 8 and self.kind == "quat" and layout is None:
-                fmt = "tum"
-                self._assumed("TUM: timestamp tx ty tz qx qy qz qw (scalar last)", "--layout wxyz")
+                fmt = "tum"  # the TUM format's own layout, as evo and the TUM tools read it: nothing to say
             elif numeric and self.squeeze and len(fields) == 12 and self.kind == "quat":
                 fmt = "kitti"
             else:
