@@ -505,8 +505,7 @@ def run(ref_path, est_path, *, metric="ape", align="none", relation="trans", del
         if not have_matplotlib():
             raise UsageError("--plot needs matplotlib (pip install matplotlib)")
         image_format(plot_path)  # an extension matplotlib does not write: before the reading
-    if interpolate is True:
-        interpolate = "evo"
+    interpolate = "evo" if interpolate is True else interpolate or False  # False: nearest pairs
     if interpolate not in (None, False) + T.INTERPOLATIONS:
         raise UsageError(f"--interpolate: unknown rule {interpolate!r}; expected one of {', '.join(T.INTERPOLATIONS)}")
     options = dict(metric=metric, align=align, relation=relation, delta=delta, delta_unit=delta_unit,

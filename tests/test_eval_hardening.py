@@ -417,6 +417,15 @@ def test_cli_eval_unsorted_estimate_is_named_by_its_line(rng, tmp_path, capsys, 
         np.savetxt(f, np.c_[t, est.pos, est.q[:, 1:], est.q[:, :1]], fmt="%.17g")
     rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est2.txt", "--interpolate", rule, "--on-invalid", "drop")
     assert rc == 1 and f"{tmp_path / 'est2.txt'}:44: time {float(t[41])!r}" in err, err
+    # a pose array: its row
+    np.save(tmp_path / "ref.npy", np.c_[ref.t, ref.pos, ref.q])
+    np.save(tmp_path / "est.npy", np.c_[t, est.pos, est.q])
+    rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy", "--interpolate", rule)
+    assert rc == 1 and err.startswith(f"{tmp_path / 'est.npy'}: row 41: time {float(t[41])!r} is before"), err
+    rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy", "--json", tmp_path / "s.json")
+    assert rc == 0  # nearest pairs: unsorted times are accepted, as evo accepts them
+    import json
+    assert json.loads((tmp_path / "s.json").read_text())["options"]["interpolate"] is False
 
 
 def test_cli_eval_out_npy_is_one_dimensional(rng, tmp_path, capsys):
