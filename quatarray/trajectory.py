@@ -323,7 +323,7 @@ def _interpolated(p, times):
     frac = np.clip(np.where(dt > 0.0, (times - t_prev) / np.where(dt > 0.0, dt, 1.0), 0.0), 0.0, 1.0)
     pos = p.pos[idx - 1] + frac[:, None] * (p.pos[idx] - p.pos[idx - 1])
     q0, q1 = normalize(p.q[idx - 1]), normalize(p.q[idx])
-    d = np.vecdot(q0, q1)  # the dot product as evo's numpy.dot, rounded the same way
+    d = _rowdot(q0, q1)  # the dot product as evo's numpy.dot, rounded the same way
     q = slerp(q0, np.where((d < 0.0)[:, None], -q1, q1), frac, shortest=False)  # evo's flip: d < 0 only
     first = (frac == 0.0) | (np.abs(np.abs(d) - 1.0) < _EVO_EPS)
     q = np.where(first[:, None], q0, np.where((frac == 1.0)[:, None], q1, q))
@@ -815,7 +815,15 @@ def _step_lengths(pos, all_pairs):
     if all_pairs:
         return np.linalg.norm(pos[:-1] - pos[1:], axis=1)
     step = pos[1:] - pos[:-1]
-    return np.sqrt(np.vecdot(step, step))
+    return np.sqrt(_rowdot(step, step))
+
+
+def _rowdot(a, b):
+    """The dot product of each row pair, rounded as ``np.dot`` of two vectors rounds it (its
+    inner loop, BLAS's ``ddot`` where numpy has it), which evo calls one row at a time."""
+    if hasattr(np, "vecdot"):  # numpy >= 2
+        return np.vecdot(a, b)
+    return (a[:, None, :] @ b[:, :, None])[:, 0, 0]  # pragma: no cover - numpy 1.26
 
 
 def pairs(est, delta=1, delta_unit="frames", all_pairs=False, rel_delta_tol=0.1):
