@@ -37,7 +37,7 @@ from .arrays import NpyReader, ZarrReader, import_zarr
 from .bvh import BvhReader
 from .clean import time_order
 from .errors import DataError, UsageError
-from .formats import is_number, is_zarr
+from .formats import is_zarr
 from .text import ParquetReader, TextReader
 
 __all__ = ["DEFAULT_CHUNK", "open_stream", "read_times", "import_zarr"]
