@@ -300,20 +300,17 @@ def run_chunked(ref_f, est_f, metric, align, relation, delta, all_pairs, n_to_al
     n = 0
     a = T.IDENTITY
     if align != "none":
-        feed = T.MomentsFeed()
-        origin = None  # as trajectory.fit: about the first pair (but a scale correction)
+        feed = origin = None  # as trajectory.fit: about the first pair (but a scale correction)
         for r, e in blocks():
             k = len(r) if n_to_align is None else max(min(len(r), int(n_to_align) - n), 0)
             if k == 0 and n_to_align is not None:
                 break
-            if origin is None and align != "scale" and k:
-                origin = e.pos[0].copy(), r.pos[0].copy()
-            if origin is None:
-                feed.add(e.pos[:k], r.pos[:k])
-            else:
-                feed.add(e.pos[:k] - origin[0], r.pos[:k] - origin[1])
+            if feed is None:
+                origin = None if align == "scale" else (e.pos[0].copy(), r.pos[0].copy())
+                feed = T.MomentsFeed(origin)
+            feed.add(e.pos[:k], r.pos[:k])
             n += len(r)
-        a = T.fit_moments(feed.moments(), align, origin)
+        a = T.fit_moments((feed or T.MomentsFeed()).moments(), align, origin)
     if out is None:
         return _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, None)
     w, errors_only = error_writer(out, metric, ref_f.has_t)
@@ -327,9 +324,9 @@ def _chunked_errors(blocks, a, metric, relation, delta, all_pairs, keep_errors, 
     errors, m, n = np.empty(blocks.most), 0, 0  # m errors so far, n: associated poses before this block
     carry = None  # RPE: the last `delta` associated poses (ref, est), first poses of the next pairs
     for r, e in blocks():
-        (r, e), size = a.frame(r, e), len(r)
+        e, size = a.local(e), len(r)  # about the alignment's origin (see trajectory.evaluate)
         if metric == "ape":
-            err = T.ape(r, e, relation)
+            err = T.ape(r, e, relation, a.origin_y)
             cols, t = [np.arange(n, n + size), err], r.t
         else:
             if carry is not None:

@@ -378,22 +378,24 @@ class Moments:
     cyx: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
 
     @classmethod
-    def of(cls, x, y):
-        """The moments of a batch of point pairs, shapes (n, 3).
+    def of(cls, x, y, origin=None):
+        """The moments of a batch of point pairs, shapes (n, 3) (with `origin`, a pair of points
+        (ox, oy): of the pairs ``x − ox``, ``y − oy``, subtracted in the kernel).
 
         Taken over blocks of :data:`MOMENT_BLOCK` pairs, merged in order (more accurate than one
         sum, and what :class:`MomentsFeed` gives bit for bit, fed in pieces of any size).
         """
         x, y = _c64(x), _c64(y)
+        ox, oy = _origin(origin)
         m = cls()
         for a in range(0, x.shape[0], MOMENT_BLOCK):
-            m = m.merge(cls._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+            m = m.merge(cls._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK], ox, oy))
         return m
 
     @classmethod
-    def _block(cls, x, y):
+    def _block(cls, x, y, ox, oy):
         mx, my, cyx = np.empty(3), np.empty(3), np.empty(9)
-        sxx = _moments_kernel(x, y, mx, my, cyx)
+        sxx = _moments_kernel(x, y, ox, oy, mx, my, cyx)
         return cls(x.shape[0], mx, my, sxx, cyx.reshape(3, 3))
 
     def merge(self, other):
@@ -412,22 +414,23 @@ class Moments:
 
 
 @kernel
-def _moments_kernel(x, y, mx, my, cyx):
-    # two passes: the means, then the sums about them (writes mx, my, cyx (flat, 9); returns sxx)
+def _moments_kernel(x, y, ox, oy, mx, my, cyx):
+    # two passes: the means, then the sums about them (writes mx, my, cyx (flat, 9); returns sxx),
+    # of the points x - ox, y - oy
     n = x.shape[0]
     sx0 = sx1 = sx2 = sy0 = sy1 = sy2 = 0.0
     for i in range(n):
-        sx0 += x[i, 0]
-        sx1 += x[i, 1]
-        sx2 += x[i, 2]
-        sy0 += y[i, 0]
-        sy1 += y[i, 1]
-        sy2 += y[i, 2]
+        sx0 += x[i, 0] - ox[0]
+        sx1 += x[i, 1] - ox[1]
+        sx2 += x[i, 2] - ox[2]
+        sy0 += y[i, 0] - oy[0]
+        sy1 += y[i, 1] - oy[1]
+        sy2 += y[i, 2] - oy[2]
     mx0, mx1, mx2, my0, my1, my2 = sx0 / n, sx1 / n, sx2 / n, sy0 / n, sy1 / n, sy2 / n
     sxx = c00 = c01 = c02 = c10 = c11 = c12 = c20 = c21 = c22 = 0.0
     for i in range(n):
-        a0, a1, a2 = x[i, 0] - mx0, x[i, 1] - mx1, x[i, 2] - mx2
-        b0, b1, b2 = y[i, 0] - my0, y[i, 1] - my1, y[i, 2] - my2
+        a0, a1, a2 = (x[i, 0] - ox[0]) - mx0, (x[i, 1] - ox[1]) - mx1, (x[i, 2] - ox[2]) - mx2
+        b0, b1, b2 = (y[i, 0] - oy[0]) - my0, (y[i, 1] - oy[1]) - my1, (y[i, 2] - oy[2]) - my2
         sxx += a0 * a0 + a1 * a1 + a2 * a2
         c00 += b0 * a0
         c01 += b0 * a1
@@ -445,6 +448,14 @@ def _moments_kernel(x, y, mx, my, cyx):
 
 
 MOMENT_BLOCK = 1 << 16
+_ZERO3 = np.zeros(3)
+
+
+def _origin(origin):
+    """(ox, oy) as float64 3-vectors (zeros for None: x − 0 is x, bit for bit)."""
+    if origin is None:
+        return _ZERO3, _ZERO3
+    return tuple(np.ascontiguousarray(o, np.float64).reshape(3) for o in origin)
 
 
 class MomentsFeed:
@@ -463,8 +474,10 @@ class MomentsFeed:
     True
     """
 
-    def __init__(self):
+    def __init__(self, origin=None):
         self._done = Moments()
+        self._origin = origin
+        self._o = _origin(origin)
         self._x, self._y = np.empty((0, 3)), np.empty((0, 3))
 
     def add(self, x, y):
@@ -472,12 +485,12 @@ class MomentsFeed:
         x, y = np.concatenate([self._x, x]), np.concatenate([self._y, y])
         full = x.shape[0] - x.shape[0] % MOMENT_BLOCK
         for a in range(0, full, MOMENT_BLOCK):
-            self._done = self._done.merge(Moments._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK]))
+            self._done = self._done.merge(Moments._block(x[a:a + MOMENT_BLOCK], y[a:a + MOMENT_BLOCK], *self._o))
         self._x, self._y = x[full:], y[full:]
 
     def moments(self):
         """The moments of all the pairs fed."""
-        return self._done.merge(Moments.of(self._x, self._y))
+        return self._done.merge(Moments.of(self._x, self._y, self._origin))
 
 
 class Alignment(NamedTuple):
@@ -500,27 +513,30 @@ class Alignment(NamedTuple):
 
     def apply(self, p):
         """The poses `p` moved by this transform (positions s R x + t, rotations R ∘ q)."""
-        if self.origin_x is None:
-            return self._moved(p.pos, p)
-        moved = self._moved(_c64(p.pos) - self.origin_x, p)
-        return moved.replace(pos=moved.pos + self.origin_y)
+        moved = self.local(p)
+        return moved if self.origin_y is None else moved.replace(pos=moved.pos + self.origin_y)
 
-    def frame(self, ref, est):
-        """`ref` and `est` moved by this transform, both with `origin_y` subtracted from their
-        positions (a translation, which no error depends on; the positions as given when the
-        alignment has no origins): ``ref.pos − origin_y`` and ``s R (est.pos − origin_x) +
-        t_local``, without the rounding of positions far from the origin."""
-        if self.origin_x is None:
-            return ref, (est if self is IDENTITY else self._moved(est.pos, est))
-        return ref.replace(pos=_c64(ref.pos) - self.origin_y), self._moved(_c64(est.pos) - self.origin_x, est)
-
-    def _moved(self, pos, p):
-        pos, q = _c64(pos), _c64(p.q)
+    def local(self, est):
+        """`est` moved by this transform less `origin_y`: ``s R (est.pos − origin_x) + t_local``
+        (:meth:`apply` when the alignment has no origins), without the rounding of positions
+        far from the origin."""
+        if self is IDENTITY:
+            return est
+        pos, q = _c64(est.pos), _c64(est.q)
         out_pos, out_q = np.empty_like(pos), np.empty_like(q)
         t = self.t if self.t_local is None else self.t_local
-        _apply_kernel(np.asarray(self.q, np.float64), float(self.s), np.asarray(t, np.float64),
+        o = _ZERO3 if self.origin_x is None else self.origin_x
+        _apply_kernel(np.asarray(self.q, np.float64), float(self.s), np.asarray(t, np.float64), o,
                       pos, q, out_pos, out_q)
-        return Poses(p.t, out_pos, out_q)
+        return Poses(est.t, out_pos, out_q)
+
+    def frame(self, ref, est):
+        """`ref` and `est` moved by this transform, both less `origin_y` (a translation, which no
+        error depends on; as given when the alignment has no origins): ``ref.pos − origin_y`` and
+        :meth:`local`. :func:`ape` and :func:`rpe` of them are exact far from the origin."""
+        if self.origin_y is None:
+            return ref, self.local(est)
+        return ref.replace(pos=_c64(ref.pos) - self.origin_y), self.local(est)
 
 
 def _c64(a):
@@ -530,12 +546,12 @@ def _c64(a):
 
 
 @rowloop(rows=3)
-def _apply_kernel(aq, s, t, pos, q, out_pos, out_q):
-    # s R x + t (R from its quaternion once, as qa.rotate does for one rotation) and aq ∘ q
+def _apply_kernel(aq, s, t, o, pos, q, out_pos, out_q):
+    # s R (x - o) + t (R from its quaternion once, as qa.rotate does for one rotation) and aq ∘ q
     a = (aq[0], aq[1], aq[2], aq[3])
     m = E.qmatrix(a)
     for i in prange(pos.shape[0]):
-        x, y, z = E.load3(pos, i)
+        x, y, z = pos[i, 0] - o[0], pos[i, 1] - o[1], pos[i, 2] - o[2]
         out_pos[i, 0] = (m[0] * x + m[1] * y + m[2] * z) * s + t[0]
         out_pos[i, 1] = (m[3] * x + m[4] * y + m[5] * z) * s + t[1]
         out_pos[i, 2] = (m[6] * x + m[7] * y + m[8] * z) * s + t[2]
@@ -592,7 +608,7 @@ def umeyama(x, y=None, with_scale=True, origin=None):
         x, y = _c64(x), _c64(y)
         if origin is None and x.shape[0]:
             origin = (x[0].copy(), y[0].copy())  # the first pair: x - origin is exact near it
-        m = Moments.of(x, y) if origin is None else Moments.of(x - origin[0], y - origin[1])
+        m = Moments.of(x, y, origin)
     if m.n < 3:
         raise ValueError(f"alignment needs at least 3 poses, got {m.n}")
     if m.sxx == 0.0:
@@ -635,10 +651,8 @@ def fit(ref, est, method="sim3", n_to_align=None):
         return IDENTITY
     k = slice(None) if n_to_align is None else slice(0, int(n_to_align))
     x, y = _c64(est.pos[k]), _c64(ref.pos[k])
-    if method == "scale" or x.shape[0] == 0:
-        return fit_moments(Moments.of(x, y), method)
-    origin = x[0].copy(), y[0].copy()
-    return fit_moments(Moments.of(x - origin[0], y - origin[1]), method, origin)
+    origin = None if method == "scale" or x.shape[0] == 0 else (x[0].copy(), y[0].copy())
+    return fit_moments(Moments.of(x, y, origin), method, origin)
 
 
 def fit_moments(moments, method="sim3", origin=None):
@@ -671,11 +685,7 @@ def align(ref, est, method="sim3", n_to_align=None):
     (2.0, True)
     """
     a = fit(ref, est, method, n_to_align)
-    return _moved(est, a), a
-
-
-def _moved(est, a):
-    return est if a is IDENTITY else a.apply(est)
+    return a.apply(est), a
 
 
 # --------------------------------------------------------------------------
@@ -706,10 +716,12 @@ def _error(code, dx, dy, dz, qa_, qb):
 
 
 @rowloop(rows=1)
-def _ape_kernel(code, ref_pos, ref_q, est_pos, est_q, out):
+def _ape_kernel(code, ref_pos, o, ref_q, est_pos, est_q, out):
+    # the reference positions less o (the estimate's are given about o: Alignment.local)
     for i in prange(out.shape[0]):
-        r, e = E.load3(ref_pos, i), E.load3(est_pos, i)
-        out[i] = _error(code, e[0] - r[0], e[1] - r[1], e[2] - r[2], E.load4(est_q, i), E.load4(ref_q, i))
+        e = E.load3(est_pos, i)
+        out[i] = _error(code, e[0] - (ref_pos[i, 0] - o[0]), e[1] - (ref_pos[i, 1] - o[1]),
+                        e[2] - (ref_pos[i, 2] - o[2]), E.load4(est_q, i), E.load4(ref_q, i))
 
 
 @inline
@@ -728,11 +740,13 @@ def _rpe_kernel(code, i, j, ref_pos, ref_q, est_pos, est_q, out):
         out[k] = _error(code, t_est[0] - t_ref[0], t_est[1] - t_ref[1], t_est[2] - t_ref[2], q_ref, q_est)
 
 
-def ape(ref, est, relation="trans"):
+def ape(ref, est, relation="trans", origin=None):
     """Absolute pose error of paired (aligned) poses, one value per pose.
 
     E = est⁻¹ ref, as evo's ``APE``: ``"trans"`` ‖p_est − p_ref‖ (metres),
     ``"rot"`` the rotation angle of E (degrees), ``"full"`` ‖E − I‖_F.
+    With `origin` (a point), the estimate's positions are given less it
+    (:meth:`Alignment.local`, `origin` its ``origin_y``): ‖p_est − (p_ref − origin)‖.
 
     Examples
     --------
@@ -745,7 +759,8 @@ def ape(ref, est, relation="trans"):
     """
     _relation(relation)
     out = np.empty(len(est))
-    _ape_kernel(_CODES[relation], _c64(ref.pos), _c64(ref.q), _c64(est.pos), _c64(est.q), out)
+    o = _ZERO3 if origin is None else np.ascontiguousarray(origin, np.float64).reshape(3)
+    _ape_kernel(_CODES[relation], _c64(ref.pos), o, _c64(ref.q), _c64(est.pos), _c64(est.q), out)
     return out
 
 
@@ -1050,16 +1065,14 @@ def evaluate(ref, est, metric="ape", align="none", relation="trans", delta=1, de
     _relation(relation)
     ref, est = associate(ref, est, t_max_diff, t_offset, interpolate)
     a = fit(ref, est, align, n_to_align)
-    # the errors about the alignment's origins (exact far from the origin of the coordinates)
-    ref_l, est_l = a.frame(ref, est)
+    # the errors about the alignment's origins (exact far from the origin of the coordinates); RPE
+    # compares each stream's own relative motions, so the reference needs no shift
+    est_l = a.local(est)
     if metric == "ape":
-        errors = ape(ref_l, est_l, relation)
+        errors = ape(ref, est_l, relation, a.origin_y)
         index, i0 = np.arange(errors.size), None
     else:
-        errors, i0, index = rpe(ref_l, est_l, relation, delta, delta_unit, all_pairs)
-    if a.origin_y is not None:
-        est = est_l.replace(pos=est_l.pos + a.origin_y)  # = a.apply(est)
-    else:
-        est = est_l
+        errors, i0, index = rpe(ref, est_l, relation, delta, delta_unit, all_pairs)
+    est = est_l if a.origin_y is None else est_l.replace(pos=est_l.pos + a.origin_y)  # = a.apply(est)
     t = None if ref.t is None else ref.t[_as_slice(index)]  # APE, RPE in frames: a view
     return Result(statistics(errors), errors, t, index, i0, ref, est, a, metric, relation, UNITS[relation])
