@@ -719,7 +719,7 @@ def build_parser():
     s.add_argument("--t-offset", type=float, default=0.0, metavar="S", help="added to the estimate's times")
     s.add_argument("--interpolate", nargs="?", const="evo", choices=("evo", "spline"), default=None, metavar="RULE",
                    help="resample one stream at the other's times instead of nearest pairs: evo (the default "
-                        "RULE, evo's --sync_method interpolation: the denser stream by slerp at the sparser one's "
+                        "RULE, evo's --sync_method interpolation: the stream with more poses by slerp at the other's "
                         "matched times) or spline (the estimate by the Bezier spline at every reference time in "
                         "its span); needs times")
     s.add_argument("--out", metavar="ERRORS",
