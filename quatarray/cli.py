@@ -535,7 +535,7 @@ def cmd_eval(args):
         args.REF, args.EST, metric=args.metric, align=args.align, relation=args.pose_relation,
         delta=args.delta, delta_unit=args.delta_unit,
         all_pairs=args.all_pairs, n_to_align=args.n_to_align, t_max_diff=args.t_max_diff,
-        t_offset=args.t_offset, interpolate=args.interpolate, out=args.out, plot_path=args.plot,
+        t_offset=args.t_offset, interpolate=(args.interpolate_rule or "evo") if (args.interpolate or args.interpolate_rule) else None, out=args.out, plot_path=args.plot,
         json_path=args.json, fmt=args.format, layout=args.layout, chunk=args.chunk,
         on_invalid=args.on_invalid, force=args.force) or 0)
 
@@ -717,11 +717,13 @@ def build_parser():
     s.add_argument("--t-max-diff", type=_positive, default=0.01, metavar="S",
                    help="largest time difference of an associated pair (default 0.01 s)")
     s.add_argument("--t-offset", type=float, default=0.0, metavar="S", help="added to the estimate's times")
-    s.add_argument("--interpolate", nargs="?", const="evo", choices=("evo", "spline"), default=None, metavar="RULE",
-                   help="resample one stream at the other's times instead of nearest pairs: evo (the default "
-                        "RULE, evo's --sync_method interpolation: the stream with more poses by slerp at the other's "
-                        "matched times) or spline (the estimate by the Bezier spline at every reference time in "
-                        "its span); needs times")
+    s.add_argument("--interpolate", action="store_true",
+                   help="resample one stream at the other's times instead of nearest pairs, by --interpolate-rule; "
+                        "needs times")
+    s.add_argument("--interpolate-rule", choices=("evo", "spline"), default=None, metavar="RULE",
+                   help="evo (the default: evo's --sync_method interpolation, the stream with more poses by slerp "
+                        "at the other's matched times) or spline (the estimate by the Bezier spline at every "
+                        "reference time in its span); implies --interpolate")
     s.add_argument("--out", metavar="ERRORS",
                    help="per-pose errors with times (csv, parquet; .npy: the errors alone, shape (N,))")
     s.add_argument("--plot", metavar="OUT.png",

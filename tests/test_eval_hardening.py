@@ -308,20 +308,20 @@ def test_cli_interpolate_equals_evo_on_files(rng, tmp_path, capsys):
     e.align(r, correct_scale=True)
     m = metrics.APE(metrics.PoseRelation.rotation_angle_deg)
     m.process_data((r, e))
-    for rule in ([], ["evo"]):
+    for rule in (["--interpolate"], ["--interpolate-rule", "evo"], ["--interpolate", "--interpolate-rule", "evo"]):
         rc, _, err = _cli(capsys, "eval", rp, ep, "--align", "sim3", "--pose-relation", "rot", "--t-offset", off,
-                          "--interpolate", *rule, "--json", tmp_path / "s.json", "--force")
+                          *rule, "--json", tmp_path / "s.json", "--force")
         assert rc == 0 and err == "", err
         got = json.loads((tmp_path / "s.json").read_text())
         assert got["pairs"] == m.error.size and got["options"]["interpolate"] == "evo"
         for k, v in m.get_all_statistics().items():
             assert got["stats"][k] == pytest.approx(v, rel=1e-9), k
-    rc, _, err = _cli(capsys, "eval", rp, ep, "--t-offset", off, "--interpolate", "spline", "--json",
+    rc, _, err = _cli(capsys, "eval", rp, ep, "--t-offset", off, "--interpolate-rule", "spline", "--json",
                         tmp_path / "s.json", "--force")
     got = json.loads((tmp_path / "s.json").read_text())
     assert rc == 0 and got["options"]["interpolate"] == "spline"
     assert got["pairs"] == np.count_nonzero((ref.t >= est.t[0] + off) & (ref.t <= est.t[-1] + off))
-    rc, _, err = _cli(capsys, "eval", rp, ep, "--interpolate", "cubic")
+    rc, _, err = _cli(capsys, "eval", rp, ep, "--interpolate-rule", "cubic")
     assert rc == 2 and "invalid choice: 'cubic'" in err
 
 
@@ -387,8 +387,8 @@ def test_cli_eval_names_its_pose_array_layouts(rng, tmp_path, capsys, array, wha
 def test_cli_eval_interpolate_needs_times(rng, tmp_path, capsys):
     good = np.c_[rng.normal(size=(20, 3)), qa.random(20, rng=rng)]
     np.save(tmp_path / "a.npy", good)
-    for rule in ([], ["spline"]):
-        rc, _, err = _cli(capsys, "eval", tmp_path / "a.npy", tmp_path / "a.npy", "--interpolate", *rule)
+    for rule in (["--interpolate"], ["--interpolate-rule", "spline"]):
+        rc, _, err = _cli(capsys, "eval", tmp_path / "a.npy", tmp_path / "a.npy", *rule)
         assert rc == 1 and "interpolation needs times; the reference and the estimate have none" in err, err
     with pytest.raises(ValueError, match="the estimate has none"):
         T.associate(T.poses(np.arange(20.0), good[:, :3], good[:, 3:]), T.poses(None, good[:, :3], good[:, 3:]),
@@ -404,7 +404,7 @@ def test_cli_eval_unsorted_estimate_is_named_by_its_line(rng, tmp_path, capsys, 
     with open(tmp_path / "est.txt", "w") as f:
         f.write("# timestamp tx ty tz qx qy qz qw\n")
         np.savetxt(f, np.c_[t, est.pos, est.q[:, 1:], est.q[:, :1]], fmt="%.17g")
-    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est.txt", "--interpolate", rule)
+    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est.txt", "--interpolate-rule", rule)
     assert rc == 1
     assert err.strip() == (f"{tmp_path / 'est.txt'}:43: time {float(t[41])!r} is before the previous one "
                            f"({float(t[40])!r}); "
@@ -413,12 +413,12 @@ def test_cli_eval_unsorted_estimate_is_named_by_its_line(rng, tmp_path, capsys, 
     with open(tmp_path / "est2.txt", "w") as f:
         f.write("# timestamp tx ty tz qx qy qz qw\n0 nan 0 0 0 0 0 1\n")
         np.savetxt(f, np.c_[t, est.pos, est.q[:, 1:], est.q[:, :1]], fmt="%.17g")
-    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est2.txt", "--interpolate", rule, "--on-invalid", "drop")
+    rc, _, err = _cli(capsys, "eval", rp, tmp_path / "est2.txt", "--interpolate-rule", rule, "--on-invalid", "drop")
     assert rc == 1 and f"{tmp_path / 'est2.txt'}:44: time {float(t[41])!r}" in err, err
     # a pose array: its row
     np.save(tmp_path / "ref.npy", np.c_[ref.t, ref.pos, ref.q])
     np.save(tmp_path / "est.npy", np.c_[t, est.pos, est.q])
-    rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy", "--interpolate", rule)
+    rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy", "--interpolate-rule", rule)
     assert rc == 1 and err.startswith(f"{tmp_path / 'est.npy'}: row 41: time {float(t[41])!r} is before"), err
     rc, _, err = _cli(capsys, "eval", tmp_path / "ref.npy", tmp_path / "est.npy", "--json", tmp_path / "s.json")
     assert rc == 0  # nearest pairs: unsorted times are accepted, as evo accepts them
