@@ -130,8 +130,8 @@ class Clip:
     def __repr__(self):
         ft = self.frame_time  # checked by the constructor, but an attribute may be set since
         fps = f"{1 / ft:.6g} fps" if isinstance(ft, (int, float)) and ft > 0 else f"frame time {ft!r}"
-        return (f"<Clip: {len(self.joints)} joints ({int(np.sum(self.ends))} end sites), {self.frames} frames "
-                f"at {fps}>")
+        return (f"<Clip: {len(self.joints)} joints ({int(np.sum(self.ends))} end sites), {self.frames} "
+                f"frame{'' if self.frames == 1 else 's'} at {fps}>")
 
     def positional(self):
         """Indices of the joints with at least one position channel."""

@@ -7,7 +7,8 @@ a :class:`quatarray.skeleton.Clip`.
 
 Reading: each joint's rotation channels, in the order the file lists them,
 are an intrinsic Euler sequence in degrees (``Zrotation Xrotation
-Yrotation`` → ``"ZXY"``, any of the six orders, joint by joint); a joint's
+Yrotation`` → ``"ZXY"``, any of the six orders, joint by joint; a hinge's
+one or two axes, ``"X"``, ``"YX"``); a joint's
 position channels (root or child, any subset of X, Y, Z) replace its OFFSET
 components in its local translation, as Blender and bvhio read BVH. Several
 roots are allowed. End Sites become leaf joints named ``<parent>_End``
@@ -171,7 +172,15 @@ def read_bvh(path, name=None):
     DataError
         A one-line message naming the file and line: a joint without
         CHANNELS or OFFSET, a frame with too few or too many numbers, a word
-        that is not a number, ``Frames:`` disagreeing with the frames held.
+        that is not a number (as numpy reads them: ``6_0`` is not one),
+        ``Frames:`` disagreeing with the frames held.
+
+    Notes
+    -----
+    A joint may have 1, 2 or 3 rotation channels (a hinge: ``CHANNELS 1
+    Xrotation``), each axis at most once. A UTF-8 byte-order mark is
+    skipped, and lines may end in LF, CR LF or CR alone. ``Frames: 0`` is a
+    hierarchy without motion: a clip of 0 frames.
 
     Examples
     --------
@@ -441,9 +450,16 @@ def write_bvh(path, clip):
     ``clip.times`` are not kept: BVH has no per-frame times). The file is
     written beside `path` and renamed at the end.
 
-    A joint without rotation channels must have the identity rotation, and a
-    joint's translation components without position channels its OFFSET (as
-    ``read_bvh`` gives them), or a ``ValueError`` is raised.
+    A joint without rotation channels must have the identity rotation, a
+    joint with 1 or 2 rotation channels (a hinge) a rotation about those
+    axes (within 1e-9 rad; :meth:`Clip.resample <quatarray.skeleton.Clip.resample>`
+    keeps them so), and a joint's translation components without position
+    channels its OFFSET (as ``read_bvh`` gives them), or a ``ValueError`` is
+    raised; so is a joint name that ``read_bvh`` would not read back as it is
+    (empty, with a line break, leading, trailing or repeated white space). End
+    Sites are written as End Site blocks wherever they are (one in another
+    included); their names are not in the file (``read_bvh`` names them
+    ``<parent>_End``). A clip without frames is written as ``Frames: 0``.
 
     Examples
     --------
