@@ -388,7 +388,8 @@ Frame Time: 0.1
 def hinge_file(path, rng, frames=30):
     motion = np.column_stack([rng.uniform(-1, 1, (frames, 3)), np.cumsum(rng.uniform(-20, 20, (frames, 6)), axis=0)])
     text = HINGE.replace("MOTION\n", f"MOTION\nFrames: {frames}\n")
-    open(path, "w").write(text + "\n".join(" ".join(repr(float(x)) for x in row) for row in motion) + "\n")
+    with open(path, "w") as f:
+        f.write(text + "\n".join(" ".join(repr(float(x)) for x in row) for row in motion) + "\n")
     return path
 
 

@@ -83,6 +83,86 @@ def test_table_covers_every_public_function():
     assert not missing, f"add a line to quatarray._warmup.TABLE for {missing}"
 
 
+def _kernel_calls(*args):
+    """Start ``tests/kernel_calls.py`` with `args` (its keys of kernel calls, without
+    compiling: see that file); returns the process."""
+    env = _env(ROOT)
+    env["NUMBA_DISABLE_JIT"] = "1"
+    return subprocess.Popen([sys.executable, os.path.join(ROOT, "tests", "kernel_calls.py"), *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _result(proc):
+    out, err = proc.communicate()
+    assert proc.returncode == 0, err[-3000:]
+    return json.loads(out.splitlines()[-1])
+
+
+def test_table_covers_every_public_entry_point():
+    """After a warm-up a new process compiles nothing, whatever public entry point it
+    calls: each call from Python into a compiled kernel that the walk of every public
+    entry point makes (quatarray.__all__ as users call them, float64 and float32, a
+    batch, one quaternion, lists; Clip.world and Clip.resample, small and large; BVH
+    files; every function of quatarray.trajectory; every command-line verb but demo,
+    bench, warmup and plot, as small and as large inputs), with its argument types,
+    is one that the warm-up's table makes, so the cache holds its machine code.
+
+    Nothing compiles here: both run as plain Python (NUMBA_DISABLE_JIT=1) and record
+    (kernel, numba types of the arguments), the key numba compiles a version for
+    (tests/kernel_calls.py). A new public function, method or verb fails
+    ``test_walk_covers_every_public_entry_point`` until kernel_calls.py walks it, and
+    this test until the table reaches what it compiles. About 40 s of CPU in three
+    processes."""
+    procs = [_kernel_calls("table", "float64"), _kernel_calls("table", "float32"), _kernel_calls("walk")]
+    table64, table32, walk = (_result(p) for p in procs)
+    assert not table64["errors"] and not table32["errors"], (table64["errors"], table32["errors"])
+    assert not walk["errors"], walk["errors"]
+    have = {json.dumps(c[:2]) for t in (table64, table32) for calls in t["calls"].values() for c in calls}
+    missing = {}
+    for entry, calls in walk["calls"].items():
+        for c in calls:
+            if json.dumps(c[:2]) not in have:
+                missing.setdefault(f"{c[0]}{tuple(c[1])}", entry)
+    assert not missing, (f"{len(missing)} kernel versions that no entry of quatarray._warmup.TABLE compiles "
+                         "(kernel(argument types): the entry point that needs it):\n"
+                         + "\n".join(f"{k}: {v}" for k, v in sorted(missing.items())))
+    # an element function called from Python compiles a twin in every process (not cached)
+    twins = {c[0]: entry for entry, calls in walk["calls"].items() for c in calls if c[2]}
+    assert not twins, f"element functions called from Python, compiled again in every process: {twins}"
+    # the walk reaches what the issue found missing: trajectory, Clip.world, the one-pass resampling
+    reached = {c[0] for calls in walk["calls"].values() for c in calls}
+    for kernel in ("trajectory._match_sorted", "trajectory._moments_kernel", "trajectory._ape_kernel",
+                   "trajectory._rpe_kernel", "skeleton._world", "_lanes._lane_spline_bezier", "_lanes._gather_unit"):
+        assert f"quatarray.{kernel}" in reached
+
+
+def test_walk_covers_every_public_entry_point():
+    """tests/kernel_calls.py has a call for every public entry point (a new one raises
+    there, naming what to add)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("kernel_calls", os.path.join(ROOT, "tests", "kernel_calls.py"))
+    kc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(kc)
+    names = kc.public_entry_points()
+    assert {"multiply", "spline", "trajectory.evaluate", "trajectory.ape", "Clip.world", "Clip.resample",
+            "verb eval", "verb resample", "verb convert"} <= set(names)
+    assert set(kc.walk(qa)) == set(names)
+    for name in ("multiply", "trajectory.statistics"):  # a name with a call and one without: the rule
+        assert callable(kc.walk(qa)[name])
+    with pytest.raises(KeyError, match="add one"):
+        kc._quaternion_calls(qa, "no_such_function")()
+
+
+def test_float64_only_entries_run_once():
+    """Clips and pose streams are float64 whatever the samples: one job per variant."""
+    jobs = _warmup._jobs(("float64", "float32"), ["Clip.world", "multiply"])
+    assert sorted(jobs) == sorted([("Clip.world", "float64", v) for v in _warmup.VARIANTS]
+                                  + [("multiply", d, v) for d in ("float64", "float32") for v in _warmup.VARIANTS])
+    assert _warmup._jobs(("float32",), ["eval"]) == [("eval", "float32", v) for v in _warmup.VARIANTS]
+    assert _warmup.FLOAT64_ONLY <= set(_warmup.TABLE)
+
+
 def test_table_reaches_the_spline_piece_kernels(monkeypatch):
     """Sorted new times over many keys take other kernels (the pieces): the table's
     "many keys" entries reach them, for each method that has them."""
