@@ -6,11 +6,18 @@ calls, counting numba's compile events (``numba:compile`` is broadcast only
 when a dispatcher really compiles, not when it loads from the cache).
 
 It warms a representative part of the table (``WARM``: row loops of
-algebra, rotation, conversions and Euler angles, serial and parallel, every
-layout) in float64 and one function in float32: 25-35 s on a two-core
-machine. The interpolation kernels are left out to keep it so (the whole
-table takes about 80 s of warm-up on two cores). ``QUATARRAY_TEST_WARMUP=all``
-warms and checks the whole table instead (float64).
+algebra, rotation, conversions and Euler angles, a clip's forward
+kinematics, serial and parallel, every layout) in float64 and one function
+in float32: 35-45 s on a two-core machine. The interpolation kernels are left
+out to keep it so (the whole table takes minutes of warm-up on two cores).
+``QUATARRAY_TEST_WARMUP=all`` warms and checks the whole table instead
+(float64), and then walks every public entry point (``tests/kernel_calls.py``)
+in the new process, which must compile nothing.
+
+That the table reaches every kernel version a public entry point needs is
+checked without compiling (``test_table_covers_every_public_entry_point``):
+the table's calls and the walk's run as plain Python, recording each call
+into a kernel with its argument types.
 """
 
 import json
@@ -25,7 +32,7 @@ import quatarray as qa
 from quatarray import _warmup
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-WARM = ["multiply", "normalize", "rotate", "as_matrix", "from_matrix", "as_euler"]
+WARM = ["multiply", "normalize", "rotate", "as_matrix", "from_matrix", "as_euler", "Clip.world"]
 WARM32 = ["multiply"]
 
 # In the new process: the warm-up's calls (each timed, with its compile count),
@@ -66,7 +73,21 @@ with event.install_listener("numba:compile", rec):
     qa.rotate(big[:1], v, out=v)  # rotation's own loop for out= v, one q of shape (1, 4)
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
-print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
+walked = {}
+if len(sys.argv) > 3:  # the walk of every public entry point (tests/kernel_calls.py), as small and large calls
+    sys.path.insert(0, sys.argv[3])
+    import warnings
+    import kernel_calls
+    for name, call in kernel_calls.walk(qa).items():
+        for variant in ("serial", "parallel"):
+            rec = event.RecordingListener()
+            with event.install_listener("numba:compile", rec), _jit.variant(variant), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                call()
+            names = [ev.data["dispatcher"].py_func.__qualname__ for _, ev in rec.buffer if ev.is_start]
+            if names:
+                walked[f"{name} {variant}"] = names
+print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary, "walked": walked}))
 """
 
 
@@ -187,7 +208,8 @@ def test_bad_arguments():
 @pytest.mark.slow
 def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     # May take minutes with QUATARRAY_TEST_WARMUP=all (see the module docstring).
-    names64 = list(_warmup.TABLE) if os.environ.get("QUATARRAY_TEST_WARMUP") == "all" else WARM
+    every = os.environ.get("QUATARRAY_TEST_WARMUP") == "all"
+    names64 = list(_warmup.TABLE) if every else WARM
     env = _env(tmp_path / "cache")
     warm = (
         "import json, sys, quatarray as qa\n"
@@ -202,11 +224,15 @@ def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     assert compiled64 > 0 and compiled32 > 0  # it really was cold
     assert (jobs64, jobs32) == (2 * len(names64), 2 * len(WARM32))  # serial and parallel
 
-    out = subprocess.run([sys.executable, "-c", _CHECK, *args], env=env, capture_output=True, text=True, check=True)
+    # with the whole table warm, the new process also walks every public entry point
+    walk = [os.path.join(ROOT, "tests")] if every else []
+    out = subprocess.run([sys.executable, "-c", _CHECK, *args, *walk], env=env, capture_output=True, text=True,
+                         check=True)
     res = json.loads(out.stdout.splitlines()[-1])
     recompiled = [j for j in res["jobs"] if j[4] or j[5]]
     assert not recompiled, f"compiled again after warm-up: {recompiled}"
     assert res["ordinary"] == 0
+    assert not res["walked"], f"public entry points that compiled after the warm-up: {res['walked']}"
     # First calls load machine code only: about 0.01-0.1 s each (the budget is
     # 0.3 s; the bound is loose because the machine is shared). Numba's own
     # start-up (its first call in a process) is timed apart.
