@@ -326,3 +326,19 @@ def test_zero_frame_clip_round_trips(tmp_path):
     path.write_text(GOOD.split("0 1 2 10")[0].replace("Frames: 2\n", ""))
     with pytest.raises(io.DataError, match="no frames"):
         io.read_bvh(path)
+
+
+def test_stream_reader_reads_hinges(tmp_path):
+    """The one-joint stream reader (info, convert, resample of a BVH's joint) reads a
+    joint of 1 or 2 rotation channels as read_bvh does."""
+    path = tmp_path / "hinges.bvh"
+    path.write_text(HINGES)
+    clip = io.read_bvh(path)
+    for j, euler in ((1, "ZY"), (2, "X")):
+        reader = io.open_stream(path, fmt="bvh", joint=clip.joints[j])
+        c = io.concat(list(reader))
+        assert reader.layout == f"euler {euler} (intrinsic, degrees)" and reader.seq is None
+        assert qa.distance(c.data, clip.rotations[:, j]).max() < 1e-15
+    path.write_text(HINGES.replace("CHANNELS 1 Xrotation", "CHANNELS 0"))
+    with pytest.raises(io.DataError, match="has 0 rotation channels, need 1, 2 or 3"):
+        io.open_stream(path, fmt="bvh", joint="knee")

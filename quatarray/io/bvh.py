@@ -614,8 +614,8 @@ class BvhReader(Reader):
     """One joint of a BVH motion-capture file as a quaternion stream.
 
     The joint's rotation channels, in the order the file lists them, form an
-    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``)
-    in degrees; position channels (the root's) become the position columns;
+    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``;
+    a hinge's one or two axes, ``"X"``) in degrees; position channels (the root's) become the position columns;
     frame i is at time i × Frame Time.
     """
 
@@ -687,13 +687,15 @@ class BvhReader(Reader):
         self.joint, first, chans, lineno = sel
         rot = [(k, c[0].upper()) for k, c in enumerate(chans) if c.lower().endswith("rotation")]
         pos = {c[0].upper(): k for k, c in enumerate(chans) if c.lower().endswith("position")}
-        if len(rot) != 3:
-            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 3")
-        self.seq = "".join(a for _, a in rot)
+        if not rot or len({a for _, a in rot}) != len(rot):
+            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 1, 2 "
+                            "or 3 about distinct axes")
+        self.euler = "".join(a for _, a in rot)  # 1 or 2 axes for a hinge
+        self.seq = self.euler if len(rot) == 3 else None  # a sequence of three, for the Euler plots
         self.rot_idx = [first + k for k, _ in rot]
         self.pos_idx = [first + pos[a] for a in "XYZ"] if all(a in pos for a in "XYZ") else None
         self.columns = [f"{self.joint}.{chans[k]}" for k in range(len(chans))]
-        self.layout = f"euler {self.seq} (intrinsic, degrees)"
+        self.layout = f"euler {self.euler} (intrinsic, degrees)"
         self.has_pos = self.pos_idx is not None
         self.rows = frames
 
@@ -756,6 +758,6 @@ class BvhReader(Reader):
                                     f"(|angle| > {MAX_DEGREES:.0e} degrees: no precision left for the rotation)")
                 fin &= ~huge  # a nan row, dropped by the Cleaner
             q = np.full((len(m), 4), np.nan)
-            q[fin] = from_euler(self.seq, ang[fin], degrees=True)
+            q[fin] = from_euler(self.euler, ang[fin], degrees=True)
             pos = m[:, self.pos_idx] if self.pos_idx else None
             yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))
