@@ -145,3 +145,13 @@ def test_resample_one_frame_clip(capsys, tmp_path):
     got = io.read_bvh(tmp_path / "out.bvh")
     assert got.frames == 1 and got.frame_time == 1 / 120
     assert qa.distance(got.rotations, one.rotations).max() < 1e-9
+
+
+def test_resample_clip_times_that_go_back(capsys, tmp_path):
+    """New times for a clip must increase: a repeated time is bad data naming the file
+    (it gave a negative or zero frame time, a BVH that read_bvh refused)."""
+    times = tmp_path / "t.txt"
+    times.write_text("0.5\n0.5\n0.6\n")
+    rc, _, err = cli(capsys, "resample", sample_path(), tmp_path / "out.bvh", "--times", times)
+    assert rc == 1 and err.startswith(f"{times}: Expected `times` to be strictly increasing, got times[1] = 0.5")
+    assert not (tmp_path / "out.bvh").exists()
