@@ -157,7 +157,7 @@ def test_table_covers_every_public_entry_point():
         assert f"quatarray.{kernel}" in reached
 
 
-def test_walk_covers_every_public_entry_point():
+def test_walk_covers_every_public_entry_point(monkeypatch):
     """tests/kernel_calls.py has a call for every public entry point (a new one raises
     there, naming what to add)."""
     import importlib.util
@@ -171,8 +171,17 @@ def test_walk_covers_every_public_entry_point():
     assert set(kc.walk(qa)) == set(names)
     for name in ("multiply", "trajectory.statistics"):  # a name with a call and one without: the rule
         assert callable(kc.walk(qa)[name])
-    with pytest.raises(KeyError, match="add one"):
+    with pytest.raises(KeyError, match="add both"):
         kc._quaternion_calls(qa, "no_such_function")()
+    # a public name with table entries but no ordinary calls yet is walked by its entries
+    seen = []
+    monkeypatch.setitem(_warmup.TABLE, "new_function[a]", lambda qa_, s: seen.append(s.dtype))
+    kc._quaternion_calls(qa, "new_function")()
+    assert seen == [np.dtype("float64"), np.dtype("float32")]
+    with pytest.raises(KeyError, match="add one"):
+        kc._trajectory_calls(qa, "no_such_function")()
+    with pytest.raises(KeyError, match="add one"):
+        kc._verb_calls(qa, "no_such_verb")()
 
 
 def test_float64_only_entries_run_once():
