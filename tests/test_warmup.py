@@ -26,6 +26,7 @@ import subprocess
 import sys
 from unittest import mock
 
+import numpy as np
 import pytest
 
 import quatarray as qa
