@@ -320,8 +320,11 @@ def test_frame_time_must_be_positive_and_repr_never_raises(six):
             clip.replace(frame_time=bad)
     r = clip.resample(times=[0.0, 0.01, 0.03])
     assert r.frame_time == 0.015 and repr(r).endswith("3 frames at 66.6667 fps>")
-    clip.frame_time = 0.0  # set after construction: repr still says what it is
+    clip.frame_time = 0.0  # set after construction: repr still says what it is, write_bvh refuses it
     assert repr(clip).endswith("frames at frame time 0.0>")
+    with pytest.raises(ValueError, match="positive, finite `frame_time`"):
+        io.write_bvh(os.path.join(os.path.dirname(six), "out.bvh"), clip)
+    assert not os.path.exists(os.path.join(os.path.dirname(six), "out.bvh"))
     clip.frame_time = None
     assert "frame time None" in repr(clip)
 

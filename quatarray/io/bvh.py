@@ -474,6 +474,9 @@ def write_bvh(path, clip):
     True
     """
     F_, J = clip.rotations.shape[:2]
+    ft = clip.frame_time
+    if not (isinstance(ft, (int, float, np.floating)) and ft > 0 and np.isfinite(ft)):
+        raise ValueError(f"Expected a positive, finite `frame_time`, got {ft!r} (read_bvh would refuse the file).")
     for j in range(J):
         _check_writable(clip, j)
     out = ["HIERARCHY"]
