@@ -371,7 +371,7 @@ def walk(qa):
 
 # The spline's piece kernels serve sorted new times over at least
 # ``splines.PIECES_MIN_KEYS`` keys; here from this many on (the kernels and their
-# argument types are the same, and plain Python runs 10 keys much faster than 256)
+# argument types are the same, and plain Python runs 10 keys much faster than 4097)
 PIECES_MIN_KEYS = 10
 
 
