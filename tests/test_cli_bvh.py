@@ -155,3 +155,23 @@ def test_resample_clip_times_that_go_back(capsys, tmp_path):
     rc, _, err = cli(capsys, "resample", sample_path(), tmp_path / "out.bvh", "--times", times)
     assert rc == 1 and err.startswith(f"{times}: Expected `times` to be strictly increasing, got times[1] = 0.5")
     assert not (tmp_path / "out.bvh").exists()
+
+
+def test_zero_frame_clip_on_the_command_line(capsys, tmp_path):
+    """``Frames: 0`` (a hierarchy without motion): info shows it, positions are (0, J, 3),
+    a stream verb has no rows to write (bad data, exit 1)."""
+    clip = io.read_bvh(sample_path())
+    path = tmp_path / "empty.bvh"
+    io.write_bvh(path, clip.replace(rotations=clip.rotations[:0], translations=clip.translations[:0],
+                                    times=clip.times[:0]))
+    rc, out, err = cli(capsys, "info", path)
+    assert rc == 0, err
+    assert "rows:         0" in out and "hierarchy: 24 joints (5 end sites, 1 root)" in out
+    rc, _, err = cli(capsys, "convert", path, tmp_path / "p.npy", "--to", "positions")
+    assert rc == 0, err
+    assert np.load(tmp_path / "p.npy").shape == (0, 24, 3)
+    rc, _, err = cli(capsys, "resample", path, tmp_path / "r.bvh", "--rate", 30)
+    assert rc == 0, err
+    assert io.read_bvh(tmp_path / "r.bvh").frames == 0
+    rc, _, err = cli(capsys, "convert", path, tmp_path / "q.csv", "--to", "quat")
+    assert rc == 1 and "no valid rows left" in err

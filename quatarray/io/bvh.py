@@ -738,9 +738,9 @@ class BvhReader(Reader):
             if not self.drop:
                 raise DataError(what)
             self.notes.append(f"{what}; read those {held}")
-        if not rows:
+        if not rows and self.frames != 0:  # "Frames: 0": a hierarchy without motion, no rows
             raise F.empty(name)
-        return np.array(rows), np.array(frame_idx)
+        return np.array(rows).reshape(len(rows), n), np.array(frame_idx, dtype=np.int64)
 
     def __iter__(self):
         from ..euler import from_euler
