@@ -9,7 +9,12 @@ compiles nothing. The calls run in worker processes, one per core, each
 taking the next job when it is done with one.
 
 The calls come from one table, :data:`TABLE`: a new public function is one
-line there (a test checks that every name of ``quatarray.__all__`` has one).
+line there (a test checks that every name of ``quatarray.__all__`` has one),
+and so is each of the other entry points whose kernels a user meets: clips
+(``Clip.world``, ``Clip.resample``, BVH files), trajectory evaluation and
+``quatarray eval``. ``tests/test_warmup.py`` walks every public entry point
+(functions, methods, command-line verbs) and checks that each call it makes
+into a compiled kernel, with its argument types, is one the table makes.
 
 Numba's cache index is not safe against two processes adding entries to the
 same function at once (both may pick the same data file name), so inside the
@@ -74,7 +79,7 @@ def _samples(dtype, n=8, k=6):
 
     return SimpleNamespace(
         dtype=d, p=p, q=q, v=rng.standard_normal((n, 3)).astype(d), t=rng.random(n).astype(d),
-        s=rng.uniform(0.5, 2.0, n).astype(d), m=m.astype(d), rv=rng.standard_normal((n, 3)).astype(d),
+        s=rng.uniform(0.5, 2.0, n).astype(d), m=np.ascontiguousarray(m, dtype=d), rv=rng.standard_normal((n, 3)).astype(d),
         axis=rng.standard_normal((n, 3)).astype(d), ang=rng.uniform(0, 3, n).astype(d),
         eul=rng.uniform(-1, 1, (n, 3)).astype(d), su2=su2,
         keys=unit(k), times=times, new_sorted=new_t, new_unsorted=rng.permutation(new_t), far=far,
@@ -147,7 +152,8 @@ def _transform(t, other, s):
     """Every method of the transforms `t` (VQS or VQM), composed also with `other`."""
     _each(t.apply, s.v, out=True)
     _each(type(t)(t.v, s.far, getattr(t, t._field)).apply, s.v, out=True)  # far rows of q
-    t[0].apply(s.v)
+    t[0].apply(s.v), t.apply(s.v[0])  # one transform and many vectors, and the other way round
+    type(t)(t.v, s.far, getattr(t, t._field)).apply(s.v[0])
     t @ t, t[0] @ t, t @ other, other @ t, t.inverse(), t.as_matrix()
     type(t).from_matrix(t.as_matrix())
     type(t).identity(3, dtype=s.dtype)
@@ -171,6 +177,100 @@ def _spline(method, new, order=0):
             qa.spline(t, keys, new_t.astype(t.dtype), method=method, order=order)
 
     return run
+
+
+def _clip(qa, s):
+    """A small clip (float64, as every clip): a root with position channels, a child,
+    a hinge (1 rotation channel), a joint of 2 rotation channels, an End Site; its
+    frames at the key times."""
+    from .skeleton import Clip
+
+    k = len(s.times)
+    q = s.keys.astype(np.float64)
+    a = np.linspace(-1.0, 2.0, k)
+    hinge = np.column_stack([np.cos(a / 2), np.sin(a / 2), np.zeros(k), np.zeros(k)])
+    two = qa.from_euler("YX", np.column_stack([a, -a]))
+    rot = np.stack([q, q[::-1], hinge, two, np.tile([1.0, 0, 0, 0], (k, 1))], axis=1)
+    off = np.array([[0.0, 0, 0], [0, 1, 0], [0, 1, 0], [1, 0, 0], [0, 0.5, 0]])
+    trans = np.broadcast_to(off, (k, 5, 3)).copy()
+    trans[:, 0] = np.cumsum(np.ones((k, 3)), axis=0)
+    chans = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
+             ("Zrotation", "Xrotation", "Yrotation"), ("Xrotation",), ("Yrotation", "Xrotation"), ()]
+    return Clip(["root", "child", "knee", "wrist", "wrist_End"], [-1, 0, 1, 0, 3], off, chans, rot, trans,
+                1.0, times=s.times, ends=[False] * 4 + [True])
+
+
+def _clip_resample(method):
+    """Clip.resample by `method`: joint by joint (a small clip) and in one pass over
+    the joints (``quatarray._lanes``, which Clip.resample takes from
+    ``LANES_MIN_SAMPLES`` joint-samples on), at a rate and at new times."""
+    def run(qa, s):
+        from ._lanes import resample_streams
+
+        clip = _clip(qa, s)
+        clip.resample(rate=3.0, method=method)
+        r = clip.resample(times=s.new_sorted, method=method)
+        cols = [j for j, o in enumerate(clip.orders) if o]
+        resample_streams(clip.times, r.times, clip.rotations, cols, method, np.empty_like(r.rotations))
+
+    return run
+
+
+def _bvh(qa, s):
+    """write_bvh (exact Euler angles, a hinge's and 2 axes' angles) and read_bvh of a clip."""
+    from .io import bvh
+
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "clip.bvh")
+        bvh.write_bvh(path, _clip(qa, s))
+        bvh.read_bvh(path).world()
+
+
+def _poses(qa, s, timed=True):
+    from .trajectory import poses
+
+    n = len(s.p)
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.5, 1.5, n)) if timed else None
+    ref = poses(t, np.cumsum(rng.standard_normal((n, 3)), axis=0), s.p)
+    est = poses(t, ref.pos + 0.1 * rng.standard_normal((n, 3)), s.q)
+    return ref, est
+
+
+def _trajectory(metric):
+    """quatarray.trajectory.evaluate: every alignment and pose relation; for APE
+    streams with and without times and the estimate resampled at the reference
+    times; for RPE every unit of delta, consecutive and all pairs."""
+    def run(qa, s):
+        from . import trajectory as T
+
+        ref, est = _poses(qa, s)
+        kw = [dict(interpolate=False), dict(interpolate=True), dict(untimed=True)] if metric == "ape" else [
+            dict(delta=1, delta_unit="frames"), dict(delta=2, delta_unit="m"), dict(delta=1.5, delta_unit="s"),
+            dict(delta=1, delta_unit="frames", all_pairs=True), dict(delta=2, delta_unit="m", all_pairs=True)]
+        for o in kw:
+            r, e = _poses(qa, s, timed=False) if o.pop("untimed", False) else (ref, est)
+            for align in T.ALIGNMENTS:
+                for relation in T.RELATIONS:
+                    T.evaluate(r, e, metric=metric, align=align, relation=relation, t_max_diff=10.0, **o)
+
+    return run
+
+
+def _eval_verb(qa, s):
+    """``quatarray eval`` on two small TUM files: the chunked path (and the in-memory one)."""
+    from . import evaluate
+
+    ref, est = _poses(qa, s)
+    with tempfile.TemporaryDirectory() as d, open(os.devnull, "w") as null:
+        names = []
+        for name, p in (("ref.txt", ref), ("est.txt", est)):
+            names.append(os.path.join(d, name))
+            np.savetxt(names[-1], np.column_stack([p.t, p.pos, p.q[:, 1:], p.q[:, :1]]))
+        for metric in ("ape", "rpe"):
+            for align in ("none", "sim3"):
+                evaluate.run(*names, metric=metric, align=align, chunk=3, stdout=null, stderr=null)
+                evaluate.run(*names, metric=metric, align=align, fmt="tum", stdout=null, stderr=null)
 
 
 def _f(name, call):
@@ -267,7 +367,22 @@ TABLE = {
     "VQS": lambda qa, s: _transform(_vqs(qa, s), _vqm(qa, s), s),
     "VQM": lambda qa, s: _transform(_vqm(qa, s), _vqs(qa, s), s),
     "interpolate": _interpolate,
+    # skeletons (quatarray.skeleton, quatarray.io.bvh): always float64
+    "Clip.world": lambda qa, s: _clip(qa, s).world(),
+    **{f"Clip.resample[{m}]": _clip_resample(m) for m in ("bezier", "slerp", "nlerp", "squad", "cubic")},
+    "read_bvh, write_bvh": _bvh,
+    # trajectory evaluation (quatarray.trajectory, ``quatarray eval``): always float64
+    "trajectory[ape]": _trajectory("ape"),
+    "trajectory[rpe]": _trajectory("rpe"),
+    "eval": _eval_verb,
 }
+
+
+# entries whose calls are float64 whatever the samples' type (a clip, a pose stream):
+# one job of one float type each (the first asked for), not one per type
+FLOAT64_ONLY = {"Clip.world", "Clip.resample[bezier]", "Clip.resample[slerp]", "Clip.resample[nlerp]",
+                "Clip.resample[squad]", "Clip.resample[cubic]", "read_bvh, write_bvh", "trajectory[ape]",
+                "trajectory[rpe]", "eval"}
 
 
 def covered(name):
@@ -369,7 +484,7 @@ def _start_worker(env, stdout, stderr):
 
 def _jobs(dtypes, names):
     order = [n for n in names if n.startswith("spline")] + [n for n in names if not n.startswith("spline")]
-    return [(n, d, v) for n in order for d in dtypes for v in VARIANTS]
+    return [(n, d, v) for n in order for d in (dtypes[:1] if n in FLOAT64_ONLY else dtypes) for v in VARIANTS]
 
 
 def _env(lock):

@@ -113,6 +113,9 @@ def cmd_resample(args):
     if args.scheduler:
         if args.in_times:
             raise UsageError("--in-times is not available with --scheduler; give --in-rate HZ")
+        if args.method in jobs.GLOBAL_METHODS:
+            raise UsageError(f"--method {args.method} is not available with --scheduler: its C² spline is one "
+                             "system over all keys (Dask's blocks are resampled apart); run without --scheduler")
         return _dask_call("resample_file", args.IN, args.OUT, rate=args.rate, times=args.times,
                           method=args.method, chunk=args.chunk, scheduler=args.scheduler, force=args.force,
                           in_rate=args.in_rate, layout=args.layout, on_invalid=args.on_invalid)
@@ -380,8 +383,6 @@ def _resample_clip(args):
     times = None
     if args.times:
         times = jobs.FileTimes(args.times, "auto").times
-    if clip.frames < 2:
-        raise DataError(f"{args.IN}: resampling needs at least 2 frames, got {clip.frames}")
     try:
         out = clip.resample(rate=args.rate, times=times, method=args.method)
     except ValueError as exc:
@@ -439,8 +440,8 @@ def _plan(args):
     pairs, seen = [], {}
     for src in args.IN:
         stem, own = os.path.splitext(os.path.basename(os.path.normpath(src)))
-        dst = os.path.join(folder, stem + (own if ext is None else ext))
-        output_format(dst)
+        dst = os.path.join(folder, stem + (_default_ext(args, src, own) if ext is None else ext))
+        _check_output_kind(args, src, dst)
         key = os.path.normcase(os.path.abspath(dst))
         if key in seen:
             raise UsageError(f"{seen[key]} and {src} would both be written to {dst}; "
@@ -450,6 +451,32 @@ def _plan(args):
             check_output(dst, inputs, force=True)
         pairs.append((src, dst))
     return pairs
+
+
+def _default_ext(args, src, own):
+    """The extension of an input's output in the OUT folder without ``--ext``: the
+    input's own, but for a BVH input that of what the verb writes of it: a BVH for
+    ``resample`` (the whole clip), ``.npy`` for ``convert --to positions`` (the
+    (F, J, 3) array), ``.csv`` for the others (the root joint's stream, with times)."""
+    if not _is_bvh(args, src):
+        return own
+    if args.verb == "resample":
+        return ".bvh"
+    return ".npy" if getattr(args, "to", None) == "positions" else ".csv"
+
+
+def _check_output_kind(args, src, dst):
+    """The usage error for an output that cannot hold what the verb writes of `src`:
+    a ``.bvh`` output is a whole clip (``resample`` of a BVH input only); positions
+    go to ``.npy``, ``.csv`` or ``.parquet``; else an extension of a stream writer."""
+    if os.path.splitext(dst)[1].lower() == ".bvh":
+        if args.verb == "resample" and _is_bvh(args, src):
+            return
+        raise UsageError(f"{dst}: a BVH output holds a whole clip, written by resample of a BVH input only; "
+                         "use --ext npy, csv or parquet")
+    fmt = output_format(dst)
+    if getattr(args, "to", None) == "positions" and fmt not in ("npy", "csv", "parquet"):
+        raise UsageError(f"{dst}: positions are written as .npy, .csv or .parquet")
 
 
 def _each_input(args):
@@ -585,7 +612,8 @@ def _positive(s):
 
 
 SEVERAL = ("With several inputs (IN... OUT) OUT is a folder, created if missing; each output keeps its "
-           "input's name, with the extension of --ext (default: the input's own). A failed input is reported "
+           "input's name, with the extension of --ext (default: the input's own; for a BVH input .bvh from "
+           "resample, .npy from convert --to positions, else .csv). A failed input is reported "
            "by name and the others still run (exit 1 if any failed).")
 
 
@@ -593,8 +621,8 @@ def _in_out(s):
     s.add_argument("IN", nargs="+", help="input stream(s)")
     s.add_argument("OUT", help="output file, or the folder for the outputs of several inputs")
     s.add_argument("--ext", metavar="EXT",
-                   help="extension (format) of the outputs in the OUT folder: npy, csv, parquet, txt "
-                        "(default: each input's own)")
+                   help="extension (format) of the outputs in the OUT folder: npy, csv, parquet, txt, bvh "
+                        "(resample of BVH inputs) (default: each input's own; see above for BVH inputs)")
 
 
 def build_parser():
@@ -650,7 +678,9 @@ def build_parser():
     m = s.add_mutually_exclusive_group(required=True)
     m.add_argument("--rate", type=_positive, metavar="HZ", help="new times t0 + k/HZ up to the last key")
     m.add_argument("--times", metavar="FILE", help="new times from a file (npy, one per line, or a stream)")
-    s.add_argument("--method", choices=METHODS, default="bezier", help="interpolation (default bezier)")
+    s.add_argument("--method", choices=METHODS, default="bezier",
+                   help="interpolation (default bezier); cubic is scipy's RotationSpline (C², one system over all "
+                        "keys: the keys are held in memory, 40-64 bytes each; not with --scheduler)")
     k = s.add_mutually_exclusive_group()
     k.add_argument("--in-rate", type=_positive, metavar="HZ",
                    help="sampling rate of an input without a time column (row i is at i/HZ s)")

@@ -26,7 +26,9 @@ from .io.formats import plain_number
 from .io.readers import read_times
 from .io.streams import concat, timed_chunks
 
-METHODS = ("bezier", "slerp", "nlerp", "squad")
+METHODS = ("bezier", "slerp", "nlerp", "squad", "cubic")
+# methods whose curve is one system over all keys: resample_stream holds every key
+GLOBAL_METHODS = ("cubic",)
 TARGETS = ("quat, xyzw, matrix, rotvec, axis-angle, euler:SEQ (e.g. euler:ZXY intrinsic, euler:zxy extrinsic), "
            "positions (world joint positions of a BVH clip: npy (F, J, 3), csv/parquet t joint x y z)")
 QUAT_FIELDS = ["qw", "qx", "qy", "qz"]
@@ -291,9 +293,15 @@ def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_time
 
     The key times are the reader's own, else those of `in_rate` or `in_times` (a
     :class:`FileTimes`; see :func:`check_key_times`). `bar` counts the rows read.
+    Memory stays bounded by `chunk` whatever the stream's length, except for the
+    methods of :data:`GLOBAL_METHODS` (``"cubic"``), whose curve between two keys
+    depends on every key: their keys are all held (:func:`_resample_global`).
     """
     from .interpolation import unflip
     from .splines import spline
+
+    if method in GLOBAL_METHODS:
+        return _resample_global(reader, clean, newt, w, method, chunk, in_rate, in_times, bar)
 
     def emit(keys, lo, hi, closed):
         # The new times of keys[lo:hi] come and are written at most `chunk` at a time, each
@@ -347,3 +355,44 @@ def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_time
         raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {len(buf)}")
     emit(buf.slice(max(lo - 2, 0), len(buf)), min(lo, 2), len(buf) - 1 - max(lo - 2, 0), closed=True)
     newt.finish(float(buf.t[-1]))
+
+
+def _resample_global(reader, clean, newt, w, method, chunk, in_rate=None, in_times=None, bar=None):
+    """:func:`resample_stream` for a method whose curve is one system over all keys
+    (``"cubic"``, scipy's RotationSpline: each key's rate depends on every other
+    key): every key is read and held (its time, quaternion and position: 40 to 64
+    bytes a key), the system is solved once, and the new times are evaluated and
+    written at most `chunk` at a time, as :func:`quatarray.spline` on the whole
+    stream gives them."""
+    from .splines import cubic_curve, unit_keys
+
+    parts = []
+    for ch in timed_chunks(reader, in_rate, in_times):
+        n = len(ch)
+        ch = clean(ch)
+        if bar is not None:
+            bar.update(n)
+        if len(ch):
+            parts.append(ch)
+    if not parts:
+        raise no_rows(reader.name)
+    keys = concat(parts)
+    if len(keys) < 2:
+        raise DataError(f"{reader.name}: resampling needs at least 2 valid rows, got {len(keys)}")
+    t = np.ascontiguousarray(keys.t, dtype=np.float64)
+    t0, t1 = float(t[0]), float(t[-1])
+    try:
+        at = cubic_curve(t, unit_keys([keys.data]))
+    except ValueError as exc:  # pragma: no cover - the Cleaner has checked the rows and times
+        raise library_error(reader.name, exc) from None
+    newt.t0 = t0
+    w.reserve(newt.count(t1, True))
+    for nt in newt.pieces(t1, True, chunk):
+        nt = np.asarray(nt, dtype=np.float64)
+        if nt.size and not (nt.min() >= t0 and nt.max() <= t1):  # pragma: no cover - the pieces stay inside
+            raise DataError(f"{reader.name}: a new time outside the key times [{t0!r}, {t1!r}]")
+        pos = None
+        if keys.pos is not None:
+            pos = np.column_stack([np.interp(nt, t, keys.pos[:, k]) for k in range(3)])
+        w.write(at(nt), nt, pos)
+    newt.finish(t1)

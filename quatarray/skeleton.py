@@ -17,8 +17,8 @@ import numpy as np
 from . import _elements as E
 from ._jit import prange, rowloop
 from ._lanes import resample_each, resample_streams
-from ._validate import as_times, key_times
-from .algebra import normalize
+from ._validate import as_times, first_not_increasing, key_times, not_increasing
+from .algebra import multiply, normalize
 from .splines import check_method, plan_times
 
 AXES = "XYZ"
@@ -116,6 +116,8 @@ class Clip:
             raise ValueError(f"Expected rotations (F, {J}, 4) and translations (F, {J}, 3), got "
                              f"{self.rotations.shape} and {self.translations.shape}.")
         self.frame_time = float(frame_time)
+        if not (self.frame_time > 0 and np.isfinite(self.frame_time)):
+            raise ValueError(f"Expected a positive, finite `frame_time` (seconds per frame), got {frame_time!r}.")
         self.times = (np.arange(F) * self.frame_time if times is None
                       else np.asarray(times, dtype=np.float64).reshape(F))
         self.ends = np.zeros(J, bool) if ends is None else np.asarray(ends, dtype=bool).reshape(J)
@@ -126,8 +128,10 @@ class Clip:
         return self.rotations.shape[0]
 
     def __repr__(self):
-        return (f"<Clip: {len(self.joints)} joints ({int(self.ends.sum())} end sites), {self.frames} frames "
-                f"at {1 / self.frame_time:.6g} fps>")
+        ft = self.frame_time  # checked by the constructor, but an attribute may be set since
+        fps = f"{1 / ft:.6g} fps" if isinstance(ft, (int, float)) and ft > 0 else f"frame time {ft!r}"
+        return (f"<Clip: {len(self.joints)} joints ({int(np.sum(self.ends))} end sites), {self.frames} "
+                f"frame{'' if self.frames == 1 else 's'} at {fps}>")
 
     def positional(self):
         """Indices of the joints with at least one position channel."""
@@ -178,16 +182,33 @@ class Clip:
         rate : float, optional
             New frames at ``times[0] + k / rate`` up to the last frame.
         times : array_like, optional
-            Explicit new times (1-D, within the clip's time span).
+            Explicit new times (1-D, strictly increasing: a clip's frames are
+            in time order; within the clip's time span).
         method : {"bezier", "slerp", "nlerp", "squad", "cubic"}
             Rotation interpolation (see :func:`quatarray.spline`; it unflips
-            each joint's keys). Translations of joints with position channels
-            are interpolated linearly (the others are their OFFSET).
+            each joint's keys). A joint with 1 or 2 rotation channels (a
+            hinge) keeps to its axes: its interpolated rotation is taken back
+            to them (:func:`few_axes_angles`; a hinge's keys turn about one
+            axis, and so does the spline between them, up to rounding).
+            Translations of joints with position channels are interpolated
+            linearly (the others are their OFFSET).
 
         Returns
         -------
         Clip
-            With ``frame_time`` ``1 / rate`` (or the median step of `times`).
+            With ``frame_time`` ``1 / rate`` (or the median step of `times`;
+            the clip's own for fewer than two new times). A clip of one
+            frame holds still: its span is one instant, and every new time
+            there gets that frame (rotations normalised, as ``spline``
+            normalises keys). A clip without frames gives one without frames.
+
+        Raises
+        ------
+        ValueError
+            Both or neither of `rate` and `times`, a rate that is not
+            positive, `times` that repeat or decrease (the message names the
+            first such time) or fall outside the clip's time span, an
+            unknown method.
 
         Examples
         --------
@@ -201,36 +222,54 @@ class Clip:
             raise ValueError("Expected exactly one of `rate` and `times`.")
         check_method(method)
         t = self.times
+        F, J = t.size, len(self.joints)
         if rate is not None:
             rate = float(rate)
             if not (rate > 0 and np.isfinite(rate)):
                 raise ValueError(f"Expected a positive `rate`, got {rate}.")
-            nt = t[0] + np.arange(int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1) / rate
-            nt = nt[nt <= t[-1]]
+            n = int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1 if F else 0
+            nt = t[0] + np.arange(n) / rate if F else np.empty(0)
+            nt = nt[nt <= t[-1]] if F else nt
             frame_time = 1.0 / rate
         else:
-            nt = as_times(times, "new_times").reshape(-1)
+            # a clip's frames are in time order, at one frame time: new times that
+            # repeat or go back would give a frame time of 0 or less (BVH refuses it)
+            nt = as_times(times, "times").reshape(-1)
+            i = first_not_increasing(nt)
+            if i is not None:
+                err = not_increasing("times", i, nt[i], nt[i + 1])
+                raise ValueError(f"{err} A clip's frames are in time order.")
             frame_time = float(np.median(np.diff(nt))) if nt.size > 1 else self.frame_time
-        J = len(self.joints)
+        if F == 0:  # no frames: no time span, nothing to interpolate
+            if nt.size:
+                raise ValueError(f"Expected no new times for a clip without frames, got {nt.size}.")
+            return self.replace(frame_time=frame_time, times=np.empty(0))
+        # the time plan once for every joint (spline's checks and conversion; the
+        # span check of a 1-frame clip: new times at its one instant only)
+        t, nt = plan_times(key_times(t, F), nt)
+        nt = np.ascontiguousarray(nt, dtype=np.float64)
         cols = [j for j in range(J) if self.orders[j]]
-        if cols and t.size < 2:
-            raise ValueError(f"Expected at least 2 frames to resample a clip, got {t.size}.")
-        # the time plan once for every joint (spline's checks and conversion)
-        t, nt = plan_times(key_times(t, t.size), nt) if cols else (t, np.asarray(nt, np.float64))
-        nt = np.ascontiguousarray(nt)
         rot = np.empty((nt.size, J, 4))
+        trans = np.empty((nt.size, J, 3))
+        trans[:] = self.offsets
+        pj = self.positional()
+        if F == 1:  # one frame: it holds still (each new frame is that frame, normalised as spline's keys)
+            rot[:] = normalize(self.rotations[0])
+            trans[:, pj] = self.translations[0, pj]
+            return self.replace(rotations=rot, translations=trans, frame_time=frame_time, times=nt)
         for j in range(J):
             if not self.orders[j]:  # no rotation channels: the clip's constant rotation (the identity)
                 rot[:, j] = normalize(self.rotations[0, j])
         if cols:  # every joint as spline(t, rotations[:, j], nt, method)
             big = nt.size * len(cols) >= LANES_MIN_SAMPLES
             (resample_streams if big else resample_each)(t, nt, self.rotations, cols, method, rot)
-        trans = np.empty((nt.size, J, 3))
-        trans[:] = self.offsets
-        pj = self.positional()
+            few = [j for j in cols if len(self.orders[j]) < 3]
+            if few:  # a joint of 1 or 2 rotation channels keeps to its axes (a hinge stays a hinge)
+                from .euler import from_euler
+
+                for j in few:
+                    rot[:, j] = from_euler(self.orders[j], few_axes_angles(rot[:, j], self.orders[j]))
         if pj:
-            if np.any(nt < t[0]) or np.any(nt > t[-1]):  # spline has already refused these
-                raise ValueError("Expected new times within the clip's time span.")
             k = np.clip(np.searchsorted(t, nt, side="right") - 1, 0, max(t.size - 2, 0))
             k1 = np.minimum(k + 1, t.size - 1)
             h = t[k1] - t[k]
@@ -274,3 +313,53 @@ def order_of(channels):
     'ZXY'
     """
     return "".join(c[0].upper() for c in channels if c.lower().endswith("rotation"))
+
+
+def few_axes_angles(q, order):
+    """Intrinsic angles (radians) of rotations about the 1 or 2 axes of `order`, as a
+    BVH joint with 1 or 2 rotation channels holds them: exact for rotations those axes
+    make (q = A(a) or q = A(a) B(b)), the nearest such rotation's for others in the
+    sense below.
+
+    One axis (a hinge): a = 2 atan2(q_A, q_w), the twist of q about e_A (the rotation
+    about e_A nearest to q). Two axes: B(b) keeps e_B, so a turns e_B about e_A to
+    where q puts it, as nearly as it can (a = atan2(s q e_B · e_C, q e_B · e_B), with
+    e_A × e_B = s e_C); b is then the twist about e_B of A(a)⁻¹ q. Angles in
+    [−π, π).
+
+    Parameters
+    ----------
+    q : array_like, shape (N, 4)
+        Quaternions (normalised here).
+    order : str
+        One or two distinct axes of ``"XYZ"`` (intrinsic).
+
+    Returns
+    -------
+    ndarray, shape (N, len(order))
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> from quatarray.skeleton import few_axes_angles
+    >>> q = qa.from_euler("YX", [[30, -40]], degrees=True)
+    >>> np.degrees(few_axes_angles(q, "YX")).round(9)
+    array([[ 30., -40.]])
+    """
+    from .rotation import rotate
+
+    q = normalize(np.asarray(q, dtype=np.float64).reshape(-1, 4))
+    iA = AXES.index(order[0])
+    if len(order) == 1:
+        ang = (2.0 * np.arctan2(q[:, 1 + iA], q[:, 0]))[:, None]
+    else:
+        iB = AXES.index(order[1])
+        iC = 3 - iA - iB
+        s = 1.0 if (iB - iA) % 3 == 1 else -1.0
+        v = rotate(q, np.broadcast_to(np.eye(3)[iB], (len(q), 3)))  # B(b) keeps e_B: q e_B = A(a) e_B
+        a = np.arctan2(s * v[:, iC], v[:, iB])
+        undo = np.zeros((len(q), 4))
+        undo[:, 0], undo[:, 1 + iA] = np.cos(a / 2), -np.sin(a / 2)  # A(a)⁻¹
+        rest = multiply(undo, q)
+        ang = np.column_stack([a, 2.0 * np.arctan2(rest[:, 1 + iB], rest[:, 0])])
+    return (ang + np.pi) % (2 * np.pi) - np.pi

@@ -36,6 +36,9 @@ Internal API (for :mod:`quatarray.dask`; no leading underscore)
     The keys as the spline interpolates them (normalised, unflipped).
 ``resample_unit(t, nt, q, method, order=0)``
     :func:`spline` on planned times and unit keys (no checks).
+``cubic_curve(t, q)``
+    ``method="cubic"`` on planned key times and unit keys, solved once: a
+    function of planned new times (for the command line's pieces).
 ``sign_summary(q, rows, ends, negated, unit, dots)``
     What a blocked sign scan needs of a block of raw keys.
 ``resample_streams(t, nt, keys, cols, method, out)``
@@ -511,16 +514,30 @@ def _run_cubic(times, new_t, data, out, sg, j, e, state, count):
 
 
 def _resample_cubic(t, nt, q, order):
-    """:func:`resample_unit` for ``method="cubic"``: the coefficients of scipy's
-    RotationSpline (:func:`quatarray._cubic.coefficients`, float64), then one
-    evaluation loop in the keys' float type."""
+    """:func:`resample_unit` for ``method="cubic"``: :func:`cubic_curve` at `nt`."""
+    return cubic_curve(t, q)(nt, order)
+
+
+def cubic_curve(t, q):
+    """``method="cubic"`` over planned key times `t` and unit, unflipped keys `q`,
+    solved once: the coefficients of scipy's RotationSpline
+    (:func:`quatarray._cubic.coefficients`, float64), and a function ``at(nt,
+    order=0)`` of planned new times (any shape) that runs one evaluation loop in the
+    keys' float type. For new times that come in pieces (the command line's
+    ``resample --method cubic``): the system over all keys is solved once."""
     coef, _ = _cubic.coefficients(t, q)
-    flat_nt = np.ascontiguousarray(nt.reshape(-1))
-    width = 3 if order else 4
-    out = np.empty(flat_nt.shape[0] * width, q.dtype)
-    if out.shape[0]:
-        _EVAL_CUBIC[order](t, flat_nt, (np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1)), out)
-    return out.reshape(nt.shape + (width,))
+    flat_q = np.ascontiguousarray(q).reshape(-1)
+    flat_c = coef.astype(q.dtype).reshape(-1)
+
+    def at(nt, order=0):
+        flat_nt = np.ascontiguousarray(nt.reshape(-1))
+        width = 3 if order else 4
+        out = np.empty(flat_nt.shape[0] * width, q.dtype)
+        if out.shape[0]:
+            _EVAL_CUBIC[order](t, flat_nt, (flat_q, flat_c), out)
+        return out.reshape(nt.shape + (width,))
+
+    return at
 
 
 def _outside(lo, hi, x):

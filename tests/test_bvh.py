@@ -18,7 +18,7 @@ def roundtrip(clip, path):
     assert back.joints == clip.joints and list(back.parents) == list(clip.parents)
     assert back.channels == clip.channels and back.orders == clip.orders and list(back.ends) == list(clip.ends)
     np.testing.assert_array_equal(back.offsets, clip.offsets)
-    assert qa.distance(back.rotations, clip.rotations).max() < 1e-9
+    assert qa.distance(back.rotations, clip.rotations).max(initial=0.0) < 1e-9
     np.testing.assert_allclose(back.world()[1], clip.world()[1], rtol=0, atol=1e-9)
     return back
 
@@ -175,13 +175,20 @@ def test_good_small_file(tmp_path):
     (GOOD + "0 1 2 11 21 31 4 5 6\n", ":17:", "'Frames:' says 2 frames, the file holds 3"),
     (GOOD.replace("11 21 31 4", "11 21 x31 4"), ":20:", "not a number: 'x31'"),
     (GOOD.replace("11 21 31 4", "11 21 3.1e 4"), ":20:", "not a number: '3.1e'"),
-    (GOOD.replace("Xrotation Yrotation Zrotation", "Xrotation Xrotation Zrotation"), ":9:", "X, Y and Z once"),
+    (GOOD.replace("Xrotation Yrotation Zrotation", "Xrotation Xrotation Zrotation"), ":9:", "each axis at most once"),
     (GOOD.replace("CHANNELS 3 Xrotation", "CHANNELS 4 Xrotation"), ":9:", "says 4 channels, lists 3"),
     (GOOD.replace("    OFFSET 0 -1 0\n    CHANNELS", "    CHANNELS"), ":6:", "has no OFFSET"),
     (GOOD.replace("}\nMOTION", "MOTION"), ":15:", "missing '}'"),
     (GOOD.replace("11 21 31", "11 21 1e12"), ":20:", "out of range"),
+    (GOOD.replace("11 21 31 4", "11 21 31 6_0"), ":20:", "not a number: '6_0'"),  # Python's float reads 60
+    (GOOD.replace("0 1 2 10 20", "0 1 2 1\u0661 20"), ":19:", "not a number"),  # an Arabic-Indic digit
+    (GOOD.replace("OFFSET 0 -1 0\n    CHANNELS", "OFFSET 0 -1_0 0\n    CHANNELS"), ":8:", "not a number: '-1_0'"),
+    (GOOD.replace("Frame Time: 0.1", "Frame Time: 0_1"), ":18:", "bad frame time '0_1'"),
+    (GOOD.replace("Frames: 2", "Frames: 0"), ":17:", "'Frames:' says 0 frames, the file holds 2"),
+    (GOOD.replace("Xrotation Yrotation Zrotation", "Xrotation Zposition Zposition"), ":9:", "each axis at most once"),
 ], ids=["no-channels", "short-frame", "long-frame", "frames-more", "frames-fewer", "word", "bad-exponent",
-        "repeated-axis", "channel-count", "no-offset", "unclosed", "huge-angle"])
+        "repeated-axis", "channel-count", "no-offset", "unclosed", "huge-angle", "underscore", "other-digits",
+        "offset-underscore", "frame-time-underscore", "frames-zero-but-some", "repeated-position"])
 def test_bad_files_one_line_naming_the_line(tmp_path, text, where, what):
     msg = bad(tmp_path, text)
     assert msg.startswith(where) and what in msg, msg
@@ -200,3 +207,138 @@ def test_write_refuses_what_bvh_cannot_hold(tmp_path):
     with pytest.raises(ValueError, match="no position channel"):
         io.write_bvh(tmp_path / "out.bvh", clip.replace(translations=tr))
     assert not (tmp_path / "out.bvh").exists()
+
+
+# --------------------------------------------------------------------------
+# issue 36: nested End Sites, hinges, BOM and CR, names, 0 frames
+
+
+NESTED = GOOD.replace("""    End Site
+    {
+      OFFSET 0 -1 0
+    }""", """    End Site
+    {
+      OFFSET 0 -1 0
+      End Site
+      {
+        OFFSET 0 0 -0.25
+      }
+    }""")
+
+
+def test_nested_end_sites_written_as_read(tmp_path):
+    """An End Site inside an End Site (read as <name>_End_End) is written back, not dropped."""
+    path = tmp_path / "nested.bvh"
+    path.write_text(NESTED)
+    clip = io.read_bvh(path)
+    assert clip.joints == ["hips", "knee", "knee_End", "knee_End_End"] and list(clip.parents) == [-1, 0, 1, 2]
+    back = roundtrip(clip, tmp_path / "back.bvh")
+    np.testing.assert_array_equal(back.offsets[3], [0, 0, -0.25])
+    assert (tmp_path / "back.bvh").read_text().count("End Site") == 2
+    roundtrip(clip.resample(rate=25), tmp_path / "resampled.bvh")
+
+
+HINGES = GOOD.replace("CHANNELS 3 Xrotation Yrotation Zrotation", "CHANNELS 1 Xrotation").replace(
+    " 1 2 3\n", "\n").replace(" 4 5 6\n", " 50\n").replace("0 1 2 10 20 30\n", "0 1 2 10 20 30 -170\n").replace(
+    """  JOINT knee""", """  JOINT wrist
+  {
+    OFFSET 1 0 0
+    CHANNELS 2 Zrotation Yrotation
+  }
+  JOINT knee""").replace("0 1 2 10 20 30 -170", "0 1 2 10 20 30 15 -25 -170").replace(
+    "0 1 2 11 21 31 50", "0 1 2 11 21 31 179 89 50")
+
+
+def test_hinge_joints_round_trip(tmp_path):
+    """CHANNELS 1 Xrotation (a hinge) and CHANNELS 2: read as rotations about those axes,
+    written with their own channels and read back; a resampled clip too."""
+    path = tmp_path / "hinges.bvh"
+    path.write_text(HINGES)
+    clip = io.read_bvh(path)
+    assert clip.orders == ["ZXY", "ZY", "X", ""] and clip.channels[2] == ("Xrotation",)
+    assert qa.distance(clip.rotations[:, 2], qa.from_euler("X", [[-170], [50]], degrees=True)).max() < 1e-15
+    assert qa.distance(clip.rotations[:, 1], qa.from_euler("ZY", [[15, -25], [179, 89]], degrees=True)).max() < 1e-15
+    back = roundtrip(clip, tmp_path / "back.bvh")
+    text = (tmp_path / "back.bvh").read_text()
+    assert "CHANNELS 1 Xrotation\n" in text and "CHANNELS 2 Zrotation Yrotation\n" in text
+    np.testing.assert_array_equal(back.translations, clip.translations)
+    for method in ("bezier", "cubic"):
+        roundtrip(clip.resample(rate=30, method=method), tmp_path / f"{method}.bvh")
+
+
+def test_write_refuses_a_hinge_turning_off_its_axis(tmp_path):
+    path = tmp_path / "hinges.bvh"
+    path.write_text(HINGES)
+    clip = io.read_bvh(path)
+    rot = clip.rotations.copy()
+    rot[1, 2] = qa.from_euler("XY", [50, 1e-6], degrees=True)  # the knee turns a little about y
+    with pytest.raises(ValueError, match=r"'knee' has rotation channels about X only, but its rotation in frame 1"):
+        io.write_bvh(tmp_path / "out.bvh", clip.replace(rotations=rot))
+    assert not (tmp_path / "out.bvh").exists()
+
+
+@pytest.mark.parametrize("encode", [
+    lambda t: b"\xef\xbb\xbf" + t.encode(),  # a byte-order mark
+    lambda t: t.replace("\n", "\r").encode(),  # old Mac line ends
+    lambda t: t.replace("\n", "\r\n").encode(),  # Windows
+    lambda t: b"\xef\xbb\xbf" + t.replace("\n", "\r").encode(),
+], ids=["bom", "cr", "crlf", "bom-cr"])
+def test_bom_and_line_ends(tmp_path, encode):
+    path = tmp_path / "good.bvh"
+    path.write_bytes(encode(GOOD))
+    clip = io.read_bvh(path)
+    path.write_text(GOOD)
+    ref = io.read_bvh(path)
+    assert clip.joints == ref.joints and np.array_equal(clip.rotations, ref.rotations)
+    np.testing.assert_array_equal(clip.translations, ref.translations)
+
+
+def test_line_numbers_with_cr_line_ends(tmp_path):
+    path = tmp_path / "bad.bvh"
+    path.write_bytes(GOOD.replace("11 21 31 4", "11 21 x31 4").replace("\n", "\r").encode())
+    with pytest.raises(io.DataError, match=r":20: not a number: 'x31'"):
+        io.read_bvh(path)
+
+
+@pytest.mark.parametrize("name", ["", " ", "left\nknee", "knee ", " knee", "left  knee", "left\tknee", "a\rb",
+                                  "knee {", "\ud800"])
+def test_write_refuses_names_it_cannot_read_back(tmp_path, name):
+    path = tmp_path / "good.bvh"
+    path.write_text(GOOD)
+    clip = io.read_bvh(path)
+    with pytest.raises(ValueError, match=r"Joint 1 has the name .* which BVH cannot hold"):
+        io.write_bvh(tmp_path / "out.bvh", clip.replace(joints=["hips", name, "knee_End"]))
+    assert not (tmp_path / "out.bvh").exists()
+    ok = clip.replace(joints=["hips", "left knée", "left knée_End"])  # single spaces, any letters: read back
+    assert roundtrip(ok, tmp_path / "ok.bvh").joints[1] == "left knée"
+
+
+def test_zero_frame_clip_round_trips(tmp_path):
+    """``Frames: 0`` is a hierarchy without motion: read as a clip of 0 frames, written back."""
+    path = tmp_path / "empty.bvh"
+    path.write_text(GOOD.split("0 1 2 10")[0].replace("Frames: 2", "Frames: 0"))
+    clip = io.read_bvh(path)
+    assert clip.frames == 0 and clip.rotations.shape == (0, 3, 4) and clip.frame_time == 0.1
+    assert clip.world()[1].shape == (0, 3, 3)
+    back = roundtrip(clip, tmp_path / "back.bvh")
+    assert back.frames == 0 and "Frames: 0\n" in (tmp_path / "back.bvh").read_text()
+    # without "Frames: 0" an empty MOTION block is still refused (frames were lost)
+    path.write_text(GOOD.split("0 1 2 10")[0].replace("Frames: 2\n", ""))
+    with pytest.raises(io.DataError, match="no frames"):
+        io.read_bvh(path)
+
+
+def test_stream_reader_reads_hinges(tmp_path):
+    """The one-joint stream reader (info, convert, resample of a BVH's joint) reads a
+    joint of 1 or 2 rotation channels as read_bvh does."""
+    path = tmp_path / "hinges.bvh"
+    path.write_text(HINGES)
+    clip = io.read_bvh(path)
+    for j, euler in ((1, "ZY"), (2, "X")):
+        reader = io.open_stream(path, fmt="bvh", joint=clip.joints[j])
+        c = io.concat(list(reader))
+        assert reader.layout == f"euler {euler} (intrinsic, degrees)" and reader.seq is None
+        assert qa.distance(c.data, clip.rotations[:, j]).max() < 1e-15
+    path.write_text(HINGES.replace("CHANNELS 1 Xrotation", "CHANNELS 0"))
+    with pytest.raises(io.DataError, match="has 0 rotation channels, need 1, 2 or 3"):
+        io.open_stream(path, fmt="bvh", joint="knee")

@@ -264,8 +264,8 @@ def test_resample_equals_spline_per_joint_bitwise(six, rng, method, one_pass, mo
     monkeypatch.setattr(skeleton, "LANES_MIN_SAMPLES", 0 if one_pass else 10**12)
     clip = io.read_bvh(six)
     uneven = clip.replace(times=np.cumsum(rng.uniform(0.005, 0.05, clip.frames)))
-    shuffled = rng.permutation(np.linspace(uneven.times[0], uneven.times[-1], 3 * clip.frames))
-    for c, kw in ((clip, dict(rate=75)), (uneven, dict(times=shuffled))):
+    new = np.unique(rng.uniform(uneven.times[0], uneven.times[-1], 3 * clip.frames))  # uneven, increasing
+    for c, kw in ((clip, dict(rate=75)), (uneven, dict(times=new))):
         r = c.resample(method=method, **kw)
         for j in range(len(c.joints)):
             if c.orders[j]:
@@ -274,6 +274,14 @@ def test_resample_equals_spline_per_joint_bitwise(six, rng, method, one_pass, mo
             else:
                 const = np.broadcast_to(qa.normalize(c.rotations[0, j]), (r.frames, 4))
                 assert np.array_equal(r.rotations[:, j], const)
+    # the one-pass kernels take new times in any order (a clip refuses them: its frames are in time order)
+    shuffled = rng.permutation(new)
+    cols = [j for j in range(len(clip.joints)) if clip.orders[j]]
+    out = np.zeros((shuffled.size, len(clip.joints), 4))
+    (skeleton.resample_streams if one_pass else skeleton.resample_each)(
+        uneven.times, shuffled, uneven.rotations, cols, method, out)
+    for j in cols:
+        assert np.array_equal(out[:, j], qa.spline(uneven.times, uneven.rotations[:, j], shuffled, method=method))
 
 
 def test_resample_needs_rate_or_times(six):
@@ -289,3 +297,140 @@ def test_tree_lists_orders(six):
     assert lines[0] == "hips  ZYX + XYZ position"
     assert any(line.strip() == "j2  YXZ + ZX position" for line in lines)
     assert lines[-2:] == ["prop  YXZ + Y position", "  prop_End  end site"]
+
+
+# --------------------------------------------------------------------------
+# issue 36: new times that repeat or go back, clips of 0 and 1 frames, hinges
+
+
+@pytest.mark.parametrize("times", [[0.5, 0.4], [0.2, 0.3, 0.3, 0.4], [0.3, 0.2, 0.1], [0.1, np.nan]])
+def test_resample_refuses_times_that_repeat_or_go_back(six, times):
+    """A clip's frames are in time order: new times that repeat or decrease (which gave
+    a frame time of 0 or less, a BVH that read_bvh refuses, a repr that raised) are
+    refused, naming the first."""
+    clip = io.read_bvh(six)
+    with pytest.raises(ValueError, match=r"strictly increasing, got times\[\d\] = .* after times\[\d\]"):
+        clip.resample(times=times)
+
+
+def test_frame_time_must_be_positive_and_repr_never_raises(six):
+    clip = io.read_bvh(six)
+    for bad in (0.0, -0.1, np.nan, np.inf):
+        with pytest.raises(ValueError, match="frame_time"):
+            clip.replace(frame_time=bad)
+    r = clip.resample(times=[0.0, 0.01, 0.03])
+    assert r.frame_time == 0.015 and repr(r).endswith("3 frames at 66.6667 fps>")
+    clip.frame_time = 0.0  # set after construction: repr still says what it is, write_bvh refuses it
+    assert repr(clip).endswith("frames at frame time 0.0>")
+    with pytest.raises(ValueError, match="positive, finite `frame_time`"):
+        io.write_bvh(os.path.join(os.path.dirname(six), "out.bvh"), clip)
+    assert not os.path.exists(os.path.join(os.path.dirname(six), "out.bvh"))
+    clip.frame_time = None
+    assert "frame time None" in repr(clip)
+
+
+def _frames(clip, a, b):
+    return clip.replace(rotations=clip.rotations[a:b], translations=clip.translations[a:b], times=clip.times[a:b])
+
+
+@pytest.mark.parametrize("method", ["bezier", "cubic"])
+def test_resample_one_frame_clip_holds_still(six, method):
+    """One frame spans one instant: any rate gives that frame once; new times at that
+    instant give it again; new times elsewhere are outside the span."""
+    clip = io.read_bvh(six)
+    one = _frames(clip, 3, 4)
+    for r in (one.resample(rate=120, method=method), one.resample(times=[one.times[0]], method=method)):
+        assert r.frames == 1 and r.times[0] == one.times[0]
+        assert qa.distance(r.rotations, one.rotations).max() < 1e-15
+        np.testing.assert_array_equal(r.translations, one.translations)
+        np.testing.assert_allclose(r.world()[1], one.world()[1], rtol=0, atol=1e-12)
+    assert one.resample(rate=120).frame_time == 1 / 120
+    with pytest.raises(ValueError, match="within"):
+        one.resample(times=[one.times[0] + 0.01])
+
+
+def test_resample_zero_frame_clip(six):
+    clip = io.read_bvh(six)
+    none = _frames(clip, 0, 0)
+    r = none.resample(rate=30)
+    assert r.frames == 0 and r.rotations.shape == (0, len(clip.joints), 4) and r.frame_time == 1 / 30
+    assert none.resample(times=[]).frames == 0
+    with pytest.raises(ValueError, match="without frames"):
+        none.resample(times=[0.0])
+
+
+HINGE = """HIERARCHY
+ROOT hips
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT knee
+  {
+    OFFSET 0 -1 0
+    CHANNELS 1 Xrotation
+    End Site
+    {
+      OFFSET 0 -1 0
+    }
+  }
+  JOINT wrist
+  {
+    OFFSET 1 0 0
+    CHANNELS 2 Yrotation Xrotation
+    End Site
+    {
+      OFFSET 0.5 0 0
+    }
+  }
+}
+MOTION
+Frame Time: 0.1
+"""
+
+
+def hinge_file(path, rng, frames=30):
+    motion = np.column_stack([rng.uniform(-1, 1, (frames, 3)), np.cumsum(rng.uniform(-20, 20, (frames, 6)), axis=0)])
+    text = HINGE.replace("MOTION\n", f"MOTION\nFrames: {frames}\n")
+    with open(path, "w") as f:
+        f.write(text + "\n".join(" ".join(repr(float(x)) for x in row) for row in motion) + "\n")
+    return path
+
+
+def test_hinge_joints_read_against_reference(tmp_path, rng):
+    """A knee with one rotation channel, a wrist with two: read as rotations about those
+    axes (the independent reader with scipy agrees)."""
+    clip = check_against_reference(hinge_file(str(tmp_path / "hinge.bvh"), rng))
+    assert clip.orders == ["ZXY", "X", "", "YX", ""]
+
+
+@pytest.mark.parametrize("method", ["bezier", "slerp", "squad", "cubic"])
+def test_resample_keeps_hinges_on_their_axes(tmp_path, rng, method):
+    """A hinge's resampled rotations turn about its axis (as spline gives them, up to
+    rounding); a 2-axis joint's are taken back to its two axes (near the spline's)."""
+    from quatarray.skeleton import few_axes_angles
+
+    clip = io.read_bvh(hinge_file(str(tmp_path / "hinge.bvh"), rng))
+    r = clip.resample(rate=47, method=method)
+    knee = qa.spline(clip.times, clip.rotations[:, 1], r.times, method=method)
+    assert qa.distance(r.rotations[:, 1], knee).max() < 1e-14
+    assert np.abs(r.rotations[:, 1, 2:]).max() == 0 or np.abs(r.rotations[:, 1, 2:]).max() < 1e-16
+    wrist = qa.spline(clip.times, clip.rotations[:, 3], r.times, method=method)
+    back = qa.from_euler("YX", few_axes_angles(r.rotations[:, 3], "YX"))
+    assert qa.distance(back, r.rotations[:, 3]).max() < 1e-14  # on its axes
+    assert qa.distance(r.rotations[:, 3], wrist).max() < 0.2  # and near the spline (keys 20° apart)
+    at_keys = clip.resample(times=clip.times, method=method)
+    assert qa.distance(at_keys.rotations, clip.rotations).max() < 1e-12
+
+
+def test_few_axes_angles_exact_for_what_the_axes_make(rng):
+    from quatarray.skeleton import few_axes_angles
+
+    for order in ("X", "Y", "Z", "XY", "YX", "XZ", "ZX", "YZ", "ZY"):
+        a = rng.uniform(-np.pi, np.pi, (500, len(order)))
+        q = qa.from_euler(order, a)
+        got = few_axes_angles(q, order)
+        assert qa.distance(qa.from_euler(order, got), q).max() < 1e-14
+        if len(order) == 1:  # the angle itself, up to the turn
+            np.testing.assert_allclose(np.cos(got - a), 1, atol=1e-12)
+        ref = Rotation.from_euler(order, a).as_matrix()  # independent: scipy's matrices
+        np.testing.assert_allclose(Rotation.from_euler(order, got).as_matrix(), ref, rtol=0, atol=1e-12)

@@ -6,11 +6,18 @@ calls, counting numba's compile events (``numba:compile`` is broadcast only
 when a dispatcher really compiles, not when it loads from the cache).
 
 It warms a representative part of the table (``WARM``: row loops of
-algebra, rotation, conversions and Euler angles, serial and parallel, every
-layout) in float64 and one function in float32: 25-35 s on a two-core
-machine. The interpolation kernels are left out to keep it so (the whole
-table takes about 80 s of warm-up on two cores). ``QUATARRAY_TEST_WARMUP=all``
-warms and checks the whole table instead (float64).
+algebra, rotation, conversions and Euler angles, a clip's forward
+kinematics, serial and parallel, every layout) in float64 and one function
+in float32: 35-45 s on a two-core machine. The interpolation kernels are left
+out to keep it so (the whole table takes minutes of warm-up on two cores).
+``QUATARRAY_TEST_WARMUP=all`` warms and checks the whole table instead
+(float64), and then walks every public entry point (``tests/kernel_calls.py``)
+in the new process, which must compile nothing.
+
+That the table reaches every kernel version a public entry point needs is
+checked without compiling (``test_table_covers_every_public_entry_point``):
+the table's calls and the walk's run as plain Python, recording each call
+into a kernel with its argument types.
 """
 
 import json
@@ -19,13 +26,14 @@ import subprocess
 import sys
 from unittest import mock
 
+import numpy as np
 import pytest
 
 import quatarray as qa
 from quatarray import _warmup
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-WARM = ["multiply", "normalize", "rotate", "as_matrix", "from_matrix", "as_euler"]
+WARM = ["multiply", "normalize", "rotate", "as_matrix", "from_matrix", "as_euler", "Clip.world"]
 WARM32 = ["multiply"]
 
 # In the new process: the warm-up's calls (each timed, with its compile count),
@@ -66,7 +74,21 @@ with event.install_listener("numba:compile", rec):
     qa.rotate(big[:1], v, out=v)  # rotation's own loop for out= v, one q of shape (1, 4)
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
-print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary}))
+walked = {}
+if len(sys.argv) > 3:  # the walk of every public entry point (tests/kernel_calls.py), as small and large calls
+    sys.path.insert(0, sys.argv[3])
+    import warnings
+    import kernel_calls
+    for name, call in kernel_calls.walk(qa).items():
+        for variant in ("serial", "parallel"):
+            rec = event.RecordingListener()
+            with event.install_listener("numba:compile", rec), _jit.variant(variant), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                call()
+            names = [ev.data["dispatcher"].py_func.__qualname__ for _, ev in rec.buffer if ev.is_start]
+            if names:
+                walked[f"{name} {variant}"] = names
+print(json.dumps({"first": first, "jobs": jobs, "ordinary": ordinary, "walked": walked}))
 """
 
 
@@ -81,6 +103,95 @@ def _env(cache):
 def test_table_covers_every_public_function():
     missing = [n for n in qa.__all__ if n != "warmup" and not _warmup.covered(n)]
     assert not missing, f"add a line to quatarray._warmup.TABLE for {missing}"
+
+
+def _kernel_calls(*args):
+    """Start ``tests/kernel_calls.py`` with `args` (its keys of kernel calls, without
+    compiling: see that file); returns the process."""
+    env = _env(ROOT)
+    env["NUMBA_DISABLE_JIT"] = "1"
+    return subprocess.Popen([sys.executable, os.path.join(ROOT, "tests", "kernel_calls.py"), *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _result(proc):
+    out, err = proc.communicate()
+    assert proc.returncode == 0, err[-3000:]
+    return json.loads(out.splitlines()[-1])
+
+
+def test_table_covers_every_public_entry_point():
+    """After a warm-up a new process compiles nothing, whatever public entry point it
+    calls: each call from Python into a compiled kernel that the walk of every public
+    entry point makes (quatarray.__all__ as users call them, float64 and float32, a
+    batch, one quaternion, lists; Clip.world and Clip.resample, small and large; BVH
+    files; every function of quatarray.trajectory; every command-line verb but demo,
+    bench, warmup and plot, as small and as large inputs), with its argument types,
+    is one that the warm-up's table makes, so the cache holds its machine code.
+
+    Nothing compiles here: both run as plain Python (NUMBA_DISABLE_JIT=1) and record
+    (kernel, numba types of the arguments), the key numba compiles a version for
+    (tests/kernel_calls.py). A new public function, method or verb fails
+    ``test_walk_covers_every_public_entry_point`` until kernel_calls.py walks it, and
+    this test until the table reaches what it compiles. About 40 s of CPU in three
+    processes."""
+    procs = [_kernel_calls("table", "float64"), _kernel_calls("table", "float32"), _kernel_calls("walk")]
+    table64, table32, walk = (_result(p) for p in procs)
+    assert not table64["errors"] and not table32["errors"], (table64["errors"], table32["errors"])
+    assert not walk["errors"], walk["errors"]
+    have = {json.dumps(c[:2]) for t in (table64, table32) for calls in t["calls"].values() for c in calls}
+    missing = {}
+    for entry, calls in walk["calls"].items():
+        for c in calls:
+            if json.dumps(c[:2]) not in have:
+                missing.setdefault(f"{c[0]}{tuple(c[1])}", entry)
+    assert not missing, (f"{len(missing)} kernel versions that no entry of quatarray._warmup.TABLE compiles "
+                         "(kernel(argument types): the entry point that needs it):\n"
+                         + "\n".join(f"{k}: {v}" for k, v in sorted(missing.items())))
+    # an element function called from Python compiles a twin in every process (not cached)
+    twins = {c[0]: entry for entry, calls in walk["calls"].items() for c in calls if c[2]}
+    assert not twins, f"element functions called from Python, compiled again in every process: {twins}"
+    # the walk reaches what the issue found missing: trajectory, Clip.world, the one-pass resampling
+    reached = {c[0] for calls in walk["calls"].values() for c in calls}
+    for kernel in ("trajectory._match_sorted", "trajectory._moments_kernel", "trajectory._ape_kernel",
+                   "trajectory._rpe_kernel", "skeleton._world", "_lanes._lane_spline_bezier", "_lanes._gather_unit"):
+        assert f"quatarray.{kernel}" in reached
+
+
+def test_walk_covers_every_public_entry_point(monkeypatch):
+    """tests/kernel_calls.py has a call for every public entry point (a new one raises
+    there, naming what to add)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("kernel_calls", os.path.join(ROOT, "tests", "kernel_calls.py"))
+    kc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(kc)
+    names = kc.public_entry_points()
+    assert {"multiply", "spline", "trajectory.evaluate", "trajectory.ape", "Clip.world", "Clip.resample",
+            "verb eval", "verb resample", "verb convert"} <= set(names)
+    assert set(kc.walk(qa)) == set(names)
+    for name in ("multiply", "trajectory.statistics"):  # a name with a call and one without: the rule
+        assert callable(kc.walk(qa)[name])
+    with pytest.raises(KeyError, match="add both"):
+        kc._quaternion_calls(qa, "no_such_function")()
+    # a public name with table entries but no ordinary calls yet is walked by its entries
+    seen = []
+    monkeypatch.setitem(_warmup.TABLE, "new_function[a]", lambda qa_, s: seen.append(s.dtype))
+    kc._quaternion_calls(qa, "new_function")()
+    assert seen == [np.dtype("float64"), np.dtype("float32")]
+    with pytest.raises(KeyError, match="add one"):
+        kc._trajectory_calls(qa, "no_such_function")()
+    with pytest.raises(KeyError, match="add one"):
+        kc._verb_calls(qa, "no_such_verb")()
+
+
+def test_float64_only_entries_run_once():
+    """Clips and pose streams are float64 whatever the samples: one job per variant."""
+    jobs = _warmup._jobs(("float64", "float32"), ["Clip.world", "multiply"])
+    assert sorted(jobs) == sorted([("Clip.world", "float64", v) for v in _warmup.VARIANTS]
+                                  + [("multiply", d, v) for d in ("float64", "float32") for v in _warmup.VARIANTS])
+    assert _warmup._jobs(("float32",), ["eval"]) == [("eval", "float32", v) for v in _warmup.VARIANTS]
+    assert _warmup.FLOAT64_ONLY <= set(_warmup.TABLE)
 
 
 def test_table_reaches_the_spline_piece_kernels(monkeypatch):
@@ -107,7 +218,8 @@ def test_bad_arguments():
 @pytest.mark.slow
 def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     # May take minutes with QUATARRAY_TEST_WARMUP=all (see the module docstring).
-    names64 = list(_warmup.TABLE) if os.environ.get("QUATARRAY_TEST_WARMUP") == "all" else WARM
+    every = os.environ.get("QUATARRAY_TEST_WARMUP") == "all"
+    names64 = list(_warmup.TABLE) if every else WARM
     env = _env(tmp_path / "cache")
     warm = (
         "import json, sys, quatarray as qa\n"
@@ -122,11 +234,15 @@ def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     assert compiled64 > 0 and compiled32 > 0  # it really was cold
     assert (jobs64, jobs32) == (2 * len(names64), 2 * len(WARM32))  # serial and parallel
 
-    out = subprocess.run([sys.executable, "-c", _CHECK, *args], env=env, capture_output=True, text=True, check=True)
+    # with the whole table warm, the new process also walks every public entry point
+    walk = [os.path.join(ROOT, "tests")] if every else []
+    out = subprocess.run([sys.executable, "-c", _CHECK, *args, *walk], env=env, capture_output=True, text=True,
+                         check=True)
     res = json.loads(out.stdout.splitlines()[-1])
     recompiled = [j for j in res["jobs"] if j[4] or j[5]]
     assert not recompiled, f"compiled again after warm-up: {recompiled}"
     assert res["ordinary"] == 0
+    assert not res["walked"], f"public entry points that compiled after the warm-up: {res['walked']}"
     # First calls load machine code only: about 0.01-0.1 s each (the budget is
     # 0.3 s; the bound is loose because the machine is shared). Numba's own
     # start-up (its first call in a process) is timed apart.

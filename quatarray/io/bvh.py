@@ -7,7 +7,8 @@ a :class:`quatarray.skeleton.Clip`.
 
 Reading: each joint's rotation channels, in the order the file lists them,
 are an intrinsic Euler sequence in degrees (``Zrotation Xrotation
-Yrotation`` → ``"ZXY"``, any of the six orders, joint by joint); a joint's
+Yrotation`` → ``"ZXY"``, any of the six orders, joint by joint; a hinge's
+one or two axes, ``"X"``, ``"YX"``); a joint's
 position channels (root or child, any subset of X, Y, Z) replace its OFFSET
 components in its local translation, as Blender and bvhio read BVH. Several
 roots are allowed. End Sites become leaf joints named ``<parent>_End``
@@ -41,14 +42,19 @@ def _err(name, lineno, what):
     return DataError(f"{name}:{lineno}: {what}")
 
 
+def _plain(s):
+    """Whether the word `s` is a number as numpy reads the MOTION block: what Python's
+    ``float`` reads, without its extras (``6_0``, digits of other scripts)."""
+    return s.isascii() and "_" not in s and is_number(s)
+
+
 def _floats(tok, name, lineno, what, n):
     if len(tok) != n:
         raise _err(name, lineno, f"{what} needs {n} numbers, got {len(tok)}")
-    try:
-        return [float(s) for s in tok]
-    except ValueError:
-        bad = next(s for s in tok if not is_number(s))
-        raise _err(name, lineno, f"not a number: '{F.shown(bad)}'") from None
+    bad = next((s for s in tok if not _plain(s)), None)
+    if bad is not None:
+        raise _err(name, lineno, f"not a number: '{F.shown(bad)}'")
+    return [float(s) for s in tok]
 
 
 def _hierarchy(lines, name):
@@ -125,9 +131,9 @@ def _hierarchy(lines, name):
                                             and len(c) == 9)]
             if bad:
                 raise _err(name, lineno, f"unknown channel '{F.shown(bad[0])}'")
-            if rot and sorted(rot) != ["X", "Y", "Z"] or len(set(pos)) != len(pos):
-                raise _err(name, lineno, f"joint {joints[j]!r}: rotation channels must name X, Y and Z once each "
-                                         "(and position channels each axis at most once)")
+            if len(set(rot)) != len(rot) or len(set(pos)) != len(pos):
+                raise _err(name, lineno, f"joint {joints[j]!r}: rotation channels must name each axis at most once "
+                                         "(1, 2 or 3 of X, Y, Z), and so must position channels")
             channels[j] = chans
         elif key == "MOTION":
             if stack or pending is not None:
@@ -166,7 +172,15 @@ def read_bvh(path, name=None):
     DataError
         A one-line message naming the file and line: a joint without
         CHANNELS or OFFSET, a frame with too few or too many numbers, a word
-        that is not a number, ``Frames:`` disagreeing with the frames held.
+        that is not a number (as numpy reads them: ``6_0`` is not one),
+        ``Frames:`` disagreeing with the frames held.
+
+    Notes
+    -----
+    A joint may have 1, 2 or 3 rotation channels (a hinge: ``CHANNELS 1
+    Xrotation``), each axis at most once. A UTF-8 byte-order mark is
+    skipped, and lines may end in LF, CR LF or CR alone. ``Frames: 0`` is a
+    hierarchy without motion: a clip of 0 frames.
 
     Examples
     --------
@@ -181,8 +195,12 @@ def read_bvh(path, name=None):
     name = os.fspath(path) if name is None else name
     with open(path, "rb") as f:
         data = f.read()
+    if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte-order mark
+        data = data[3:]
     if not data.strip():
         raise F.empty(name)
+    if b"\r" in data:  # CR LF or CR alone (old Mac files) ends a line, as Python's universal newlines
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     # the header as text (small); the MOTION block stays bytes for numpy
     head_end = data.find(b"\nFrame Time")
     if head_end < 0:
@@ -212,10 +230,13 @@ def read_bvh(path, name=None):
 
 
 def _num(s, typ, name, lineno, what):
+    s = s.strip()
     try:
-        return typ(s.strip())
+        if not _plain(s):
+            raise ValueError(s)
+        return typ(s)
     except ValueError:
-        raise _err(name, lineno, f"bad {what} '{F.shown(s.strip())}'") from None
+        raise _err(name, lineno, f"bad {what} '{F.shown(s)}'") from None
 
 
 def _motion(buf, nch, name, first_line, frames, frames_line):
@@ -236,8 +257,10 @@ def _motion(buf, nch, name, first_line, frames, frames_line):
     if frames is not None and held.size != frames:
         raise _err(name, frames_line, f"'Frames:' says {frames} frame{'s' if frames != 1 else ''}, "
                                       f"the file holds {held.size}")
-    if held.size == 0:
+    if held.size == 0 and frames != 0:  # "Frames: 0" is a hierarchy without motion
         raise DataError(f"{name}: no frames in the MOTION section")
+    if held.size == 0:
+        return np.empty((0, nch)), held + first_line
     text = buf.decode("latin-1")
     try:
         with warnings.catch_warnings():
@@ -248,7 +271,7 @@ def _motion(buf, nch, name, first_line, frames, frames_line):
     if vals is None or vals.size != held.size * nch:  # find the first word that is not a number
         lines = text.split("\n")
         for i in held:
-            bad = next((s for s in lines[i].split() if not is_number(s)), None)
+            bad = next((s for s in lines[i].split() if not _plain(s)), None)
             if bad is not None:
                 raise _err(name, first_line + int(i), f"not a number: '{F.shown(bad)}'")
         raise DataError(f"{name}: the MOTION section could not be read as numbers")  # pragma: no cover
@@ -367,6 +390,54 @@ def _fmt(x):
     return repr(float(x))
 
 
+def _few_axes(q, order, joint):
+    """:func:`quatarray.skeleton.few_axes_angles` of unit quaternions `q`, or the
+    ValueError for a rotation that the 1 or 2 axes of `order` cannot make (more than
+    1e-9 rad away, what write_bvh promises)."""
+    from ..algebra import distance
+    from ..euler import from_euler
+    from ..skeleton import few_axes_angles
+
+    ang = few_axes_angles(q, order)
+    if len(q):
+        err = distance(from_euler(order, ang), q)
+        bad = ~(err <= 1e-9)
+        if bad.any():
+            i = int(np.argmax(bad))
+            axes = " and ".join(order)
+            raise ValueError(f"Joint {joint!r} has rotation channels about {axes} only, but its rotation in "
+                             f"frame {i} is not about {'that axis' if len(order) == 1 else 'those axes'} "
+                             f"({float(err[i]):.3g} rad away).")
+    return ang
+
+
+def _check_writable(clip, j):
+    """The ValueError for a joint name that read_bvh would not read back as it is
+    (empty, leading, trailing or repeated white space, a line break, a trailing '{',
+    text that is not UTF-8), or channels that are not BVH's."""
+    name = clip.joints[j]
+    if not clip.ends[j]:
+        try:
+            name.encode("utf-8")
+            ok = True
+        except UnicodeEncodeError:
+            ok = False
+        words = name.split()
+        if not ok or not words or name != " ".join(words) or words[-1] == "{":
+            raise ValueError(f"Joint {j} has the name {name!r}, which BVH cannot hold (read back, it would be "
+                             "another name or none): expected words separated by single spaces, without line "
+                             "breaks or a trailing '{'.")
+    chans = clip.channels[j]
+    ok = all(isinstance(c, str) and len(c) == 9 and c[0].upper() in "XYZ"
+             and c[1:].lower() in ("rotation", "position") for c in chans)
+    rot = [c[0].upper() for c in chans if ok and c.lower().endswith("rotation")]
+    pos = [c[0].upper() for c in chans if ok and c.lower().endswith("position")]
+    if not ok or len(set(rot)) != len(rot) or len(set(pos)) != len(pos) or (clip.ends[j] and chans):
+        raise ValueError(f"Joint {name!r} has channels {tuple(chans)!r}, which BVH cannot hold: expected "
+                         "Xrotation … Zposition, each axis at most once among the rotations and among the "
+                         "positions (none for an End Site).")
+
+
 def write_bvh(path, clip):
     """Write a :class:`~quatarray.skeleton.Clip` as BVH text.
 
@@ -379,9 +450,16 @@ def write_bvh(path, clip):
     ``clip.times`` are not kept: BVH has no per-frame times). The file is
     written beside `path` and renamed at the end.
 
-    A joint without rotation channels must have the identity rotation, and a
-    joint's translation components without position channels its OFFSET (as
-    ``read_bvh`` gives them), or a ``ValueError`` is raised.
+    A joint without rotation channels must have the identity rotation, a
+    joint with 1 or 2 rotation channels (a hinge) a rotation about those
+    axes (within 1e-9 rad; :meth:`Clip.resample <quatarray.skeleton.Clip.resample>`
+    keeps them so), and a joint's translation components without position
+    channels its OFFSET (as ``read_bvh`` gives them), or a ``ValueError`` is
+    raised; so is a joint name that ``read_bvh`` would not read back as it is
+    (empty, with a line break, leading, trailing or repeated white space). End
+    Sites are written as End Site blocks wherever they are (one in another
+    included); their names are not in the file (``read_bvh`` names them
+    ``<parent>_End``). A clip without frames is written as ``Frames: 0``.
 
     Examples
     --------
@@ -396,6 +474,11 @@ def write_bvh(path, clip):
     True
     """
     F_, J = clip.rotations.shape[:2]
+    ft = clip.frame_time
+    if not (isinstance(ft, (int, float, np.floating)) and ft > 0 and np.isfinite(ft)):
+        raise ValueError(f"Expected a positive, finite `frame_time`, got {ft!r} (read_bvh would refuse the file).")
+    for j in range(J):
+        _check_writable(clip, j)
     out = ["HIERARCHY"]
     kids = [[] for _ in range(J)]
     for j, p in enumerate(clip.parents):
@@ -405,14 +488,14 @@ def write_bvh(path, clip):
     def emit(j, d):
         ind = "\t" * d
         off = " ".join(_fmt(v) for v in clip.offsets[j])
-        if clip.ends[j]:
-            out.extend([f"{ind}End Site", f"{ind}{{", f"{ind}\tOFFSET {off}", f"{ind}}}"])
-            return
-        out.append(f"{ind}{'ROOT' if clip.parents[j] < 0 else 'JOINT'} {clip.joints[j]}")
-        out.append(f"{ind}{{")
-        out.append(f"{ind}\tOFFSET {off}")
-        out.append(f"{ind}\tCHANNELS {len(clip.channels[j])} {' '.join(clip.channels[j])}".rstrip())
-        for k in kids[j]:
+        if clip.ends[j]:  # its name is not written: read_bvh names it <parent>_End
+            out.extend([f"{ind}End Site", f"{ind}{{", f"{ind}\tOFFSET {off}"])
+        else:
+            out.append(f"{ind}{'ROOT' if clip.parents[j] < 0 else 'JOINT'} {clip.joints[j]}")
+            out.append(f"{ind}{{")
+            out.append(f"{ind}\tOFFSET {off}")
+            out.append(f"{ind}\tCHANNELS {len(clip.channels[j])} {' '.join(clip.channels[j])}".rstrip())
+        for k in kids[j]:  # an End Site's children too (read_bvh reads an End Site in an End Site)
             emit(k, d + 1)
         out.append(f"{ind}}}")
 
@@ -436,8 +519,10 @@ def write_bvh(path, clip):
         chans = clip.channels[j]
         order_j = clip.orders[j]
         ang = None
-        if order_j:
+        if len(order_j) == 3:
             ang = np.degrees(exact_euler(clip.rotations[:, j], order_j))
+        elif order_j:  # a hinge (1 axis) or 2 axes
+            ang = np.degrees(_few_axes(clip.rotations[:, j], order_j, clip.joints[j]))
         elif not (np.abs(np.abs(clip.rotations[:, j, 0]) - 1.0) <= 1e-12).all():
             raise ValueError(f"Joint {clip.joints[j]!r} has no rotation channels but turns.")
         fixed = [a for a in range(3) if "XYZ"[a] not in "".join(c[0].upper() for c in chans
@@ -532,8 +617,8 @@ class BvhReader(Reader):
     """One joint of a BVH motion-capture file as a quaternion stream.
 
     The joint's rotation channels, in the order the file lists them, form an
-    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``)
-    in degrees; position channels (the root's) become the position columns;
+    intrinsic Euler sequence (``Zrotation Xrotation Yrotation`` → ``"ZXY"``;
+    a hinge's one or two axes, ``"X"``) in degrees; position channels (the root's) become the position columns;
     frame i is at time i × Frame Time.
     """
 
@@ -605,13 +690,15 @@ class BvhReader(Reader):
         self.joint, first, chans, lineno = sel
         rot = [(k, c[0].upper()) for k, c in enumerate(chans) if c.lower().endswith("rotation")]
         pos = {c[0].upper(): k for k, c in enumerate(chans) if c.lower().endswith("position")}
-        if len(rot) != 3:
-            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 3")
-        self.seq = "".join(a for _, a in rot)
+        if not rot or len({a for _, a in rot}) != len(rot):
+            raise DataError(f"{name}:{lineno}: joint {self.joint!r} has {len(rot)} rotation channels, need 1, 2 "
+                            "or 3 about distinct axes")
+        self.euler = "".join(a for _, a in rot)  # 1 or 2 axes for a hinge
+        self.seq = self.euler if len(rot) == 3 else None  # a sequence of three, for the Euler plots
         self.rot_idx = [first + k for k, _ in rot]
         self.pos_idx = [first + pos[a] for a in "XYZ"] if all(a in pos for a in "XYZ") else None
         self.columns = [f"{self.joint}.{chans[k]}" for k in range(len(chans))]
-        self.layout = f"euler {self.seq} (intrinsic, degrees)"
+        self.layout = f"euler {self.euler} (intrinsic, degrees)"
         self.has_pos = self.pos_idx is not None
         self.rows = frames
 
@@ -651,9 +738,9 @@ class BvhReader(Reader):
             if not self.drop:
                 raise DataError(what)
             self.notes.append(f"{what}; read those {held}")
-        if not rows:
+        if not rows and self.frames != 0:  # "Frames: 0": a hierarchy without motion, no rows
             raise F.empty(name)
-        return np.array(rows), np.array(frame_idx)
+        return np.array(rows).reshape(len(rows), n), np.array(frame_idx, dtype=np.int64)
 
     def __iter__(self):
         from ..euler import from_euler
@@ -674,6 +761,6 @@ class BvhReader(Reader):
                                     f"(|angle| > {MAX_DEGREES:.0e} degrees: no precision left for the rotation)")
                 fin &= ~huge  # a nan row, dropped by the Cleaner
             q = np.full((len(m), 4), np.nan)
-            q[fin] = from_euler(self.seq, ang[fin], degrees=True)
+            q[fin] = from_euler(self.euler, ang[fin], degrees=True)
             pos = m[:, self.pos_idx] if self.pos_idx else None
             yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))
