@@ -536,7 +536,17 @@ def approx_equal(p, q, atol=None, degrees=False):
     the same rotation, which is equal here and not in scipy.)
 
     Sign-blind (q and −q are the same rotation) and scale-blind; leading
-    dimensions broadcast.
+    dimensions broadcast. The same rotation given twice (``approx_equal(q, q)``,
+    also ``q`` and ``-q``) is equal at any tolerance, ``atol=0`` included: its
+    distance is exactly 0.
+
+    float32 quaternions are compared in float64, as scipy compares them (it
+    holds every rotation in float64): the distance is then that of the given
+    float32 numbers to about 1e-16 rad, where float32 arithmetic would add a
+    rounding error of up to about 1e-7 rad, ten times the default `atol`, and
+    decide by rounding whether two nearby float32 rotations are equal. This
+    costs a float64 copy of float32 inputs; :func:`distance` itself keeps
+    float32.
 
     Parameters
     ----------
@@ -558,6 +568,9 @@ def approx_equal(p, q, atol=None, degrees=False):
     True
     >>> qa.approx_equal(qa.from_rotvec([[0, 0, 0.01], [0, 0, 0.1]]), qa.identity(), atol=1, degrees=True)
     array([ True, False])
+    >>> q = qa.random(1000, rng=0, dtype="float32")
+    >>> bool(qa.approx_equal(q, q, atol=0).all() and qa.approx_equal(q, -q).all())
+    True
     """
     if atol is None:
         if degrees:
@@ -565,4 +578,5 @@ def approx_equal(p, q, atol=None, degrees=False):
         atol = 1e-8
     elif degrees:
         atol = np.deg2rad(atol)
-    return np.less_equal(distance(p, q), atol)
+    # float32 in float64 (see above); float64 arrays are not copied
+    return np.less_equal(distance(as_float(p, "p", np.float64), as_float(q, "q", np.float64)), atol)
