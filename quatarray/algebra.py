@@ -476,43 +476,70 @@ def mean(q, weights=None, axis=None):
     a = check_core(as_float(q, "q"), "q", Q)
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
-    lead = a.shape[:-1]
-    red = _reduce_axes(axis, len(lead))
-    keep = tuple(k for k in range(len(lead)) if k not in red)
-    count = int(np.prod([lead[k] for k in red]))
-    if a.size == 0 or count == 0:
-        raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{a.shape}.")
+    red = mean_axes(a.shape, axis)
+    return mean_solve(mean_sums(a, mean_weights(weights, a.shape[:-1]), red), a.dtype)
+
+
+# mean in two steps, the sums and the solve, which quatarray.dask.mean runs on each
+# block and once on the sum of the blocks' sums
+
+
+def mean_axes(shape, axis):
+    """The leading axes :func:`mean` reduces for `q` of `shape` (a sorted tuple);
+    ValueError for a bad `axis` or nothing to average."""
+    nlead = len(shape) - 1
+    red = _reduce_axes(axis, nlead)
+    count = int(np.prod([shape[k] for k in red]))
+    if int(np.prod(shape)) == 0 or count == 0:
+        raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{tuple(shape)}.")
+    return red
+
+
+def mean_weights(weights, lead):
+    """:func:`mean`'s `weights` as float64 of the leading shape `lead` (ones for None)."""
     if weights is None:
-        w = np.ones(lead)
-    else:
-        w = as_float(weights, "weights", np.float64)
-        try:
-            w = np.broadcast_to(w, lead)
-        except ValueError:
-            raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
-        if np.any(w < 0):
-            k = int(np.argmax((w < 0).reshape(-1)))
-            raise ValueError(
-                f"Expected `weights` to be non-negative; {where(k, lead)} has weight {w.reshape(-1)[k]}."
-            )
+        return np.ones(lead)
+    w = as_float(weights, "weights", np.float64)
+    try:
+        return np.broadcast_to(w, lead)
+    except ValueError:
+        raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
+
+
+def mean_sums(a, w, red):
+    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``) over the leading
+    axes `red` of the quaternions `a` (..., 4), `w` the weights of a's leading shape.
+    A negative weight, or a zero, inf or nan quaternion or weight, raises ``ValueError``
+    naming the first such row of `a`."""
+    lead = a.shape[:-1]
+    if np.any(w < 0):
+        k = int(np.argmax((w < 0).reshape(-1)))
+        raise ValueError(f"Expected `weights` to be non-negative; {where(k, lead)} has weight {w.reshape(-1)[k]}.")
+    keep = tuple(k for k in range(len(lead)) if k not in red)
     order = keep + red
     out_lead = tuple(lead[k] for k in keep)
     groups = int(np.prod(out_lead))
+    count = int(np.prod([lead[k] for k in red]))
     qg = np.transpose(a, order + (len(lead),)).reshape(groups, count, 4)
     wg = np.transpose(w, order).reshape(groups, count)
     acc = np.zeros((groups, 4, 4))
     _outer_sum(qg, wg, acc)
-    finite = np.isfinite(acc).all(axis=(1, 2))
-    if not finite.all():
-        g = int(np.argmin(finite))
-        # the first bad row of that group, named by its index in `q`
-        qq = np.moveaxis(a, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else a
-        ww = np.moveaxis(w, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else w
-        raise _mean_bad_row(qq.reshape(-1, 4), ww.reshape(-1), qq.shape[:-1])
-    zero = ~acc.any(axis=(1, 2))
+    if not np.isfinite(acc).all():
+        raise _mean_bad_row(a.reshape(-1, 4), w.reshape(-1), lead)
+    return acc.reshape(out_lead + (4, 4))
+
+
+def mean_solve(acc, dtype):
+    """The mean rotations (canonical sign, `dtype`) of the sums `acc` (..., 4, 4) of
+    :func:`mean_sums`: the eigenvectors of their largest eigenvalues; all-zero sums (all
+    weights zero) give the identity, as in scipy."""
+    acc = np.array(acc, np.float64)
+    if not np.isfinite(acc).all():  # finite sums of blocks whose total overflows
+        raise ValueError("Expected `weights` whose sum is finite; the weighted sum overflows.")
+    zero = ~acc.any(axis=(-2, -1))
     acc[zero] = np.diag([1.0, 0.0, 0.0, 0.0])  # all weights zero: scipy's answer, the identity
     vecs = np.linalg.eigh(acc)[1][..., -1]
-    return canonical(vecs.astype(a.dtype)).reshape(out_lead + Q)
+    return canonical(vecs.astype(dtype))
 
 
 def _mean_bad_row(flat, w, lead):
