@@ -234,19 +234,15 @@ def pair_scale(x, p, skip):
         if i != skip:
             for j in range(3):
                 m = max(m, abs(np.float64(x[p, i, j])))
-    return power_scale(m)
-
-
-@element
-def power_scale(m):
-    """The power of two r of :func:`pair_scale` for a largest |component| m ≥ 0 (float64):
-    r·m in [2, 4) for a normal m, 2^1023 for a subnormal one, 1 for 0, inf or nan."""
     r, c = exponent_scales(m)
     if (c > 0.0) & (r > 0.0) & (m < np.inf):
         return r
-    if m > 0.0 and m < np.inf:  # subnormal: 2^(1−E) would overflow
+    if m > 0.0 and m < TINY:  # subnormal: 2^(1−E) would overflow
         return 2.0**1023
     return 1.0
+
+
+TINY = 2.0**-1022  # the smallest normal float64
 
 
 @element
@@ -303,10 +299,10 @@ def fixed_fit(a, b, w, p, k):
     ak, bk, wk = load_pair(a, b, w, p, k, 1.0, 1.0)
     q = shortest_arc(bk, ak)
     if n > 1:
-        # the primary direction from a_k scaled by a power of two (exact, and the same u for a
-        # normal a_k): a subnormal a_k's length would keep too few digits to divide by
-        rk = power_scale(max(max(abs(ak[0]), abs(ak[1])), abs(ak[2])))
-        ak = (rk * ak[0], rk * ak[1], rk * ak[2])
+        if max(max(abs(ak[0]), abs(ak[1])), abs(ak[2])) < TINY:
+            # a subnormal a_k's length keeps too few digits to divide by: its direction from
+            # a_k times 2^1023 (exact)
+            ak = (2.0**1023 * ak[0], 2.0**1023 * ak[1], 2.0**1023 * ak[2])
         na = vlength(ak)
         u = (ak[0] / na, ak[1] / na, ak[2] / na)
         sin_sum = 0.0
