@@ -354,5 +354,5 @@ def test_subnormal_vectors(rng, sc):
             want = np.sqrt(np.sum((a1 - qa.rotate(q, b1)) ** 2))
             assert abs(r - want) <= 1e-12 * want
     # float32 vectors below float32's normal range are normal float64 numbers: aligned as well
-    q32, r32 = qa.align_vectors((a0 * 1e-40).astype(np.float32), (b0 * 1e-40).astype(np.float32))
+    q32 = qa.align_vectors((a0 * 1e-40).astype(np.float32), (b0 * 1e-40).astype(np.float32))[0]
     assert q32.dtype == np.float32 and np.all(qa.distance(q32, qa.align_vectors(a0, b0)[0]) < 1e-3)

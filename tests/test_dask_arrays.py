@@ -578,17 +578,17 @@ def test_mean_across_chunks(client, chunks):
     rng = np.random.default_rng(12)
     # random rotations (their mean is ill-conditioned: the worst case for the order of the sums)
     # and a cluster around one rotation
-    for q in (qa.random((30, 50), rng=rng), qa.multiply(qa.from_rotvec([0.3, -1, 2]), qa.from_rotvec(
+    for qs in (qa.random((30, 50), rng=rng), qa.multiply(qa.from_rotvec([0.3, -1, 2]), qa.from_rotvec(
             0.3 * rng.standard_normal((30, 50, 3))))):
-        q[::3] *= -2.5  # sign- and scale-blind
+        qs[::3] *= -2.5  # sign- and scale-blind
         w = rng.random((30, 50))
-        x = da.from_array(q, chunks=chunks + (4,))
-        r = Rotation.from_quat(q, scalar_first=True)
+        x = da.from_array(qs, chunks=chunks + (4,))
+        r = Rotation.from_quat(qs, scalar_first=True)
         for axis in (None, 0, 1, -1, (0, 1), ()):
             for weights in (None, w, w[:1], da.from_array(w, chunks=(4, 17))):
                 ww = weights.compute() if isinstance(weights, da.Array) else weights
                 lazy = qd.mean(x, weights, axis=axis)
-                expect = qa.mean(q, ww, axis=axis)
+                expect = qa.mean(qs, ww, axis=axis)
                 assert isinstance(lazy, da.Array) and lazy.shape == expect.shape and lazy.dtype == expect.dtype
                 got = lazy.compute(scheduler="sync")
                 assert np.all(qa.distance(got, expect) < 1e-12)
@@ -597,7 +597,7 @@ def test_mean_across_chunks(client, chunks):
                 if whole:  # the averaged axes in one chunk: the in-memory sums, bitwise
                     assert same(got, expect)
     # on the cluster's worker processes; float32 stays float32
-    q32 = q.astype(np.float32)
+    q32 = qs.astype(np.float32)
     got = run(client, qd.mean(da.from_array(q32, chunks=chunks + (4,)), axis=1))
     assert same(got, qa.mean(q32, axis=1)) if chunks[1] == 50 else np.all(qa.distance(got, qa.mean(q32, axis=1)) < 1e-6)
     got = run(client, qd.mean(da.from_array(q32, chunks=chunks + (4,))))
@@ -605,12 +605,12 @@ def test_mean_across_chunks(client, chunks):
 
 
 def test_mean_edges_and_errors():
-    q = qa.random(100, rng=13)
-    x = chunked(q, 30)
+    qs = qa.random(100, rng=13)
+    x = chunked(qs, 30)
     # a single quaternion; all weights zero: the identity, as scipy
-    assert same(qd.mean(q[5]).compute(), qa.mean(q[5]))
-    assert same(qd.mean(q[5], axis=0).compute(), qa.mean(q[5], axis=0))
-    assert same(qd.mean(x, np.zeros(100)).compute(), qa.mean(q, np.zeros(100)))
+    assert same(qd.mean(qs[5]).compute(), qa.mean(qs[5]))
+    assert same(qd.mean(qs[5], axis=0).compute(), qa.mean(qs[5], axis=0))
+    assert same(qd.mean(x, np.zeros(100)).compute(), qa.mean(qs, np.zeros(100)))
     for bad in (3, (0, 1), 1.0):
         with pytest.raises(ValueError, match="axis"):
             qd.mean(x, axis=bad)
@@ -621,7 +621,7 @@ def test_mean_edges_and_errors():
     with pytest.raises(TypeError, match="weights"):
         qd.mean(x, np.ones(100, complex))
     # a bad row is named by its index in the whole array, at compute
-    b = q.copy()
+    b = qs.copy()
     b[67] = 0.0
     lazy = qd.mean(chunked(b, 30))
     with pytest.raises(ValueError, match=r"`q` to be finite and non-zero; row 67 is zero"):
