@@ -532,8 +532,7 @@ def mean_sums(a, w, red):
 def mean_solve(acc, dtype):
     """The mean rotations (canonical sign, `dtype`) of the sums `acc` (..., 4, 4) of
     :func:`mean_sums`: the eigenvectors of their largest eigenvalues; all-zero sums (all
-    weights zero) give the identity, as in scipy."""
-    acc = np.array(acc, np.float64)
+    weights zero) give the identity, as in scipy. (`acc`, float64, is changed in place.)"""
     if not np.isfinite(acc).all():  # finite sums of blocks whose total overflows
         raise ValueError("Expected `weights` whose sum is finite; the weighted sum overflows.")
     zero = ~acc.any(axis=(-2, -1))

@@ -710,7 +710,7 @@ def _mean_block(start, qb, *wb, red):
 def _mean_finish(acc, dtype):
     from ..algebra import mean_solve
 
-    return mean_solve(acc, dtype)
+    return mean_solve(np.array(acc, np.float64), dtype)  # a copy: the block may be shared
 
 
 def mean(q, weights=None, axis=None):
