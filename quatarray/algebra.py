@@ -477,7 +477,10 @@ def mean(q, weights=None, axis=None):
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
     red = mean_axes(a.shape, axis)
-    return mean_solve(mean_sums(a, mean_weights(weights, a.shape[:-1]), red), a.dtype)
+    w = mean_weights(weights, a.shape[:-1])
+    if weights is not None:
+        mean_check_weights(w)
+    return mean_solve(mean_sums(a, w, red), a.dtype)
 
 
 # mean in two steps, the sums and the solve, which quatarray.dask.mean runs on each
@@ -506,15 +509,19 @@ def mean_weights(weights, lead):
         raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
 
 
-def mean_sums(a, w, red):
-    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``) over the leading
-    axes `red` of the quaternions `a` (..., 4), `w` the weights of a's leading shape.
-    A negative weight, or a zero, inf or nan quaternion or weight, raises ``ValueError``
-    naming the first such row of `a`."""
-    lead = a.shape[:-1]
+def mean_check_weights(w):
+    """ValueError naming the first negative weight of `w` (the leading shape of q)."""
     if np.any(w < 0):
         k = int(np.argmax((w < 0).reshape(-1)))
-        raise ValueError(f"Expected `weights` to be non-negative; {where(k, lead)} has weight {w.reshape(-1)[k]}.")
+        raise ValueError(f"Expected `weights` to be non-negative; {where(k, w.shape)} has weight {w.reshape(-1)[k]}.")
+
+
+def mean_sums(a, w, red):
+    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``) over the leading
+    axes `red` of the quaternions `a` (..., 4), `w` the (non-negative) weights of a's
+    leading shape. A zero, inf or nan quaternion or weight raises ``ValueError`` naming
+    the first such row of `a`."""
+    lead = a.shape[:-1]
     keep = tuple(k for k in range(len(lead)) if k not in red)
     order = keep + red
     out_lead = tuple(lead[k] for k in keep)

@@ -699,10 +699,12 @@ align_vectors.__module__ = __package__
 
 
 def _mean_block(start, qb, *wb, red):
-    from ..algebra import mean_sums
+    from ..algebra import mean_check_weights, mean_sums
 
     w = wb[0] if wb else np.ones(qb.shape[:-1])
     with _jit.serial(), origin(start):
+        if wb:
+            mean_check_weights(w)
         acc = mean_sums(qb, w, red)
     return np.expand_dims(acc, red)  # the reduced axes kept, of length 1 (summed next)
 
