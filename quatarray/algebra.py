@@ -476,43 +476,76 @@ def mean(q, weights=None, axis=None):
     a = check_core(as_float(q, "q"), "q", Q)
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
-    lead = a.shape[:-1]
-    red = _reduce_axes(axis, len(lead))
-    keep = tuple(k for k in range(len(lead)) if k not in red)
-    count = int(np.prod([lead[k] for k in red]))
-    if a.size == 0 or count == 0:
-        raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{a.shape}.")
+    red = mean_axes(a.shape, axis)
+    w = mean_weights(weights, a.shape[:-1])
+    if weights is not None:
+        mean_check_weights(w)
+    return mean_solve(mean_sums(a, w, red), a.dtype)
+
+
+# mean in two steps, the sums and the solve, which quatarray.dask.mean runs on each
+# block and once on the sum of the blocks' sums
+
+
+def mean_axes(shape, axis):
+    """The leading axes :func:`mean` reduces for `q` of `shape` (a sorted tuple);
+    ValueError for a bad `axis` or nothing to average."""
+    nlead = len(shape) - 1
+    red = _reduce_axes(axis, nlead)
+    count = int(np.prod([shape[k] for k in red]))
+    if int(np.prod(shape)) == 0 or count == 0:
+        raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{tuple(shape)}.")
+    return red
+
+
+def mean_weights(weights, lead):
+    """:func:`mean`'s `weights` as float64 of the leading shape `lead` (ones for None)."""
     if weights is None:
-        w = np.ones(lead)
-    else:
-        w = as_float(weights, "weights", np.float64)
-        try:
-            w = np.broadcast_to(w, lead)
-        except ValueError:
-            raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
-        if np.any(w < 0):
-            k = int(np.argmax((w < 0).reshape(-1)))
-            raise ValueError(
-                f"Expected `weights` to be non-negative; {where(k, lead)} has weight {w.reshape(-1)[k]}."
-            )
+        return np.ones(lead)
+    w = as_float(weights, "weights", np.float64)
+    try:
+        return np.broadcast_to(w, lead)
+    except ValueError:
+        raise ValueError(f"Expected `weights` to broadcast to {lead}, got {w.shape}.") from None
+
+
+def mean_check_weights(w):
+    """ValueError naming the first negative weight of `w` (the leading shape of q)."""
+    if np.any(w < 0):
+        k = int(np.argmax((w < 0).reshape(-1)))
+        raise ValueError(f"Expected `weights` to be non-negative; {where(k, w.shape)} has weight {w.reshape(-1)[k]}.")
+
+
+def mean_sums(a, w, red):
+    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``) over the leading
+    axes `red` of the quaternions `a` (..., 4), `w` the (non-negative) weights of a's
+    leading shape. A zero, inf or nan quaternion or weight raises ``ValueError`` naming
+    the first such row of `a`."""
+    lead = a.shape[:-1]
+    keep = tuple(k for k in range(len(lead)) if k not in red)
     order = keep + red
     out_lead = tuple(lead[k] for k in keep)
     groups = int(np.prod(out_lead))
+    count = int(np.prod([lead[k] for k in red]))
     qg = np.transpose(a, order + (len(lead),)).reshape(groups, count, 4)
     wg = np.transpose(w, order).reshape(groups, count)
     acc = np.zeros((groups, 4, 4))
     _outer_sum(qg, wg, acc)
-    finite = np.isfinite(acc).all(axis=(1, 2))
-    if not finite.all():
-        g = int(np.argmin(finite))
-        # the first bad row of that group, named by its index in `q`
-        qq = np.moveaxis(a, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else a
-        ww = np.moveaxis(w, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else w
-        raise _mean_bad_row(qq.reshape(-1, 4), ww.reshape(-1), qq.shape[:-1])
-    zero = ~acc.any(axis=(1, 2))
+    if not np.isfinite(acc).all():
+        raise _mean_bad_row(a.reshape(-1, 4), w.reshape(-1), lead)
+    return acc.reshape(out_lead + (4, 4))
+
+
+def mean_solve(acc, dtype):
+    """The mean rotations (canonical sign, `dtype`) of the sums `acc` (..., 4, 4) of
+    :func:`mean_sums`: the eigenvectors of their largest eigenvalues; all-zero sums (all
+    weights zero) give the identity, as in scipy. (`acc`, float64, is changed in place.)"""
+    if not np.isfinite(acc).all():  # finite sums of blocks whose total overflows
+        raise ValueError("Expected `weights` whose sum is finite; the weighted sum overflows.")
+    zero = ~acc.any(axis=(-2, -1))
     acc[zero] = np.diag([1.0, 0.0, 0.0, 0.0])  # all weights zero: scipy's answer, the identity
     vecs = np.linalg.eigh(acc)[1][..., -1]
-    return canonical(vecs.astype(a.dtype)).reshape(out_lead + Q)
+    return canonical(vecs.astype(dtype))
 
 
 def _mean_bad_row(flat, w, lead):
@@ -536,7 +569,17 @@ def approx_equal(p, q, atol=None, degrees=False):
     the same rotation, which is equal here and not in scipy.)
 
     Sign-blind (q and −q are the same rotation) and scale-blind; leading
-    dimensions broadcast.
+    dimensions broadcast. The same rotation given twice (``approx_equal(q, q)``,
+    also ``q`` and ``-q``) is equal at any tolerance, ``atol=0`` included: its
+    distance is exactly 0.
+
+    float32 quaternions are compared in float64, as scipy compares them (it
+    holds every rotation in float64): the distance is then that of the given
+    float32 numbers to about 1e-16 rad, where float32 arithmetic would add a
+    rounding error of up to about 1e-7 rad, ten times the default `atol`, and
+    decide by rounding whether two nearby float32 rotations are equal. This
+    costs a float64 copy of float32 inputs; :func:`distance` itself keeps
+    float32.
 
     Parameters
     ----------
@@ -558,6 +601,9 @@ def approx_equal(p, q, atol=None, degrees=False):
     True
     >>> qa.approx_equal(qa.from_rotvec([[0, 0, 0.01], [0, 0, 0.1]]), qa.identity(), atol=1, degrees=True)
     array([ True, False])
+    >>> q = qa.random(1000, rng=0, dtype="float32")
+    >>> bool(qa.approx_equal(q, q, atol=0).all() and qa.approx_equal(q, -q).all())
+    True
     """
     if atol is None:
         if degrees:
@@ -565,4 +611,5 @@ def approx_equal(p, q, atol=None, degrees=False):
         atol = 1e-8
     elif degrees:
         atol = np.deg2rad(atol)
-    return np.less_equal(distance(p, q), atol)
+    # float32 in float64 (see above); float64 arrays are not copied
+    return np.less_equal(distance(as_float(p, "p", np.float64), as_float(q, "q", np.float64)), atol)

@@ -224,15 +224,25 @@ def pair_scale(x, p, skip):
     """A power of two r (exact) that brings the largest |component| m of problem p's
     vectors in `x` (a or b) into [2, 4): sums of products of r_a·a and r_b·b (B,
     |a|², |b|²) then neither overflow nor underflow whatever the vectors' magnitudes;
-    B and the singular values of the scaled problem are r_a r_b times its own. 1 when
-    m is 0, subnormal, inf or nan. Pair `skip` does not count (−1: none)."""
+    B and the singular values of the scaled problem are r_a r_b times its own. A
+    subnormal m (below 2.2e-308; float32 vectors are read as float64, where none of
+    theirs is subnormal) gets 2^1023, the largest power of two (2^(1−E) would
+    overflow), which brings it into [2^-51, 2): still far from underflow in the
+    squares. 1 when m is 0, inf or nan. Pair `skip` does not count (−1: none)."""
     m = 0.0
     for i in range(x.shape[1]):
         if i != skip:
             for j in range(3):
                 m = max(m, abs(np.float64(x[p, i, j])))
     r, c = exponent_scales(m)
-    return r if (c > 0.0) & (r > 0.0) & (m < np.inf) else 1.0
+    if (c > 0.0) & (r > 0.0) & (m < np.inf):
+        return r
+    if m > 0.0 and m < TINY:  # subnormal: 2^(1−E) would overflow
+        return 2.0**1023
+    return 1.0
+
+
+TINY = 2.0**-1022  # the smallest normal float64
 
 
 @element
@@ -289,6 +299,10 @@ def fixed_fit(a, b, w, p, k):
     ak, bk, wk = load_pair(a, b, w, p, k, 1.0, 1.0)
     q = shortest_arc(bk, ak)
     if n > 1:
+        if max(max(abs(ak[0]), abs(ak[1])), abs(ak[2])) < TINY:
+            # a subnormal a_k's length keeps too few digits to divide by: its direction from
+            # a_k times 2^1023 (exact)
+            ak = (2.0**1023 * ak[0], 2.0**1023 * ak[1], 2.0**1023 * ak[2])
         na = vlength(ak)
         u = (ak[0] / na, ak[1] / na, ak[2] / na)
         sin_sum = 0.0
@@ -431,7 +445,8 @@ def align_vectors(a, b, weights=None, return_sensitivity=False):
     (infinite-weight or only) pair, or a negative weight raise ``ValueError``
     naming the problem, as scipy does (scipy also raises for a primary vector
     whose squared norm underflows, below about 1e-162; here such vectors are
-    aligned, as are vectors of any other magnitude). When the optimum is not unique
+    aligned, as are vectors of any other magnitude, subnormal ones included:
+    the optimum does not depend on the scale). When the optimum is not unique
     (collinear vectors in `a` or in `b`: s₁ + s₂ < 2·10⁻¹⁵ s₀ for B's
     singular values, see :data:`NOT_UNIQUE`) one ``UserWarning`` per call
     says how many problems are affected, as scipy warns; the rotation

@@ -646,3 +646,40 @@ def test_approx_equal_matches_scipy(rng):
     assert qa.approx_equal([1, 0, 0, 0], [-2, 0, 0, 0], atol=0)
     assert qa.approx_equal([1, 0, 0, 0], qa.from_rotvec([0, 0, 0.5]), atol=qa.distance([1, 0, 0, 0], qa.from_rotvec([0, 0, 0.5])))
     assert qa.approx_equal(p.astype(np.float32), p.astype(np.float32), 1e-3).all()
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_same_rotation_is_exactly_zero_apart(rng, dtype):
+    # issue 36.1: distance(q, q) and distance(q, -q) were up to 1.6e-16 rad (8e-8 in float32) for
+    # about 63 % of rotations, so approx_equal(q, q, atol=0) was False; scipy gives exactly 0
+    q0 = qa.random(5000, rng)
+    rq = R(q0)
+    assert np.all((rq.inv() * rq).magnitude() == 0)  # the oracle's behaviour
+    for s in (1.0, 3.7) + SCALES[dtype]:
+        q = (q0 * s).astype(dtype)
+        for other in (q, -q, dtype(2) * q):
+            assert np.all(qa.distance(q, other) == 0), s
+            assert np.all(qa.distance(other, q) == 0), s
+            assert qa.approx_equal(q, other, atol=0).all(), s
+    # the product's vector part cancels exactly for q*⊗q, q⊗q* (multiply and the cumprod scan)
+    q = q0.astype(dtype)
+    for a, b in ((qa.conjugate(q), q), (q, qa.conjugate(q)), (qa.conjugate(q), -q)):
+        assert np.all(qa.multiply(a, b)[:, 1:] == 0)
+        assert np.all(qa.cumprod(np.stack([a, b]))[-1, :, 1:] == 0)
+
+
+def test_approx_equal_float32_as_scipy(rng):
+    # issue 36.2: approx_equal(p, p) was False for about half of float32 rotations (their float32
+    # distance reached 8e-8 rad, above the default 1e-8); scipy is True for all of them. Rule:
+    # float32 rotations are compared in float64, as scipy (which holds them in float64) does.
+    p = qa.random(4000, rng, dtype=np.float32)
+    assert qa.approx_equal(p, p).all() and qa.approx_equal(p, -p).all() and qa.approx_equal(2 * p, p).all()
+    # nearby float32 rotations are decided as scipy decides them, not by float32 rounding
+    small = qa.from_rotvec(rng.standard_normal((4000, 3)) * 10.0 ** rng.uniform(-9, -6, (4000, 1)))
+    q = qa.multiply(p.astype(np.float64), small).astype(np.float32)
+    q[::3] *= -3
+    rp, rq = R(p), R(q)
+    for atol in (None, 3e-8, 1e-7, 3e-7, 1e-6):
+        np.testing.assert_array_equal(qa.approx_equal(p, q, atol), rp.approx_equal(rq, atol))
+        np.testing.assert_array_equal(qa.approx_equal(p, q.astype(np.float64), atol), rp.approx_equal(rq, atol))
+    assert qa.distance(p, q).dtype == np.float32  # distance itself keeps float32

@@ -320,3 +320,39 @@ def test_magnitudes_far_apart_within_a_problem():
     for sa, sb in [(1e160, 1e-160), (1e200, 1e-200), (1e-250, 1e250)]:
         q, r = qa.align_vectors(a0 * sa, b0 * sb)
         assert qa.distance(q, q0) < 1e-15 and np.isfinite(r)
+
+
+@pytest.mark.parametrize("sc", [1e-308, 1e-310, 1e-315])
+def test_subnormal_vectors(rng, sc):
+    # issue 36.4: vectors whose largest component is subnormal gave the identity with rssd 0. The
+    # oracle: scipy on the same (subnormal) vectors times 2^1000, an exact scaling into its range
+    up = 2.0**1000
+    b0 = rng.standard_normal((3, 6, 3))
+    a0 = qa.rotate(qa.random((3, 1), rng), b0) + 0.05 * rng.standard_normal((3, 6, 3))
+    big = max(np.abs(a0).max(), np.abs(b0).max())
+    a0, b0 = a0 / big, b0 / big
+    a, b = a0 * sc, b0 * sc
+    assert np.abs(a).max() < np.finfo(float).tiny and np.abs(b).max() < np.finfo(float).tiny
+    ulp = np.finfo(float).smallest_subnormal
+    q, r = qa.align_vectors(a, b)
+    for k in range(3):
+        qs, rs = scipy_align(a[k] * up, b[k] * up)
+        assert qa.distance(q[k], qs) < 1e-12
+        assert abs(r[k] - rs / up) <= 1e-9 * rs / up + 2 * ulp  # the rssd of the scaled problem (as check())
+        # and near scipy's answer for the unscaled vectors (the subnormals keep fewer digits)
+        assert qa.distance(q[k], scipy_align(a0[k], b0[k])[0]) < 1e-14 + 100 * ulp / sc
+    # a only, b only, an infinite weight (the primary-pair path), one pair
+    w = np.r_[np.inf, np.ones(5)]
+    for a1, ua, b1, ub, w1 in ((a[0], up, b0[0], 1, None), (a0[0], 1, b[0], up, None), (a[0], up, b[0], up, w),
+                               (a[0, :1], up, b[0, :1], up, None)):
+        q, r = qa.align_vectors(a1, b1, w1)
+        qs, rs = scipy_align(a1 * ua, b1 * ub, w1)
+        assert qa.distance(q, qs) < 1e-12
+        if ua == ub:  # both subnormal: the rssd of the scaled problem (a subnormal number: its own rounding)
+            assert abs(r - rs / up) <= 1e-9 * rs / up + 2 * ulp
+        else:  # one set subnormal, the other normal: the residual is that of the normal set
+            want = np.sqrt(np.sum((a1 - qa.rotate(q, b1)) ** 2))
+            assert abs(r - want) <= 1e-12 * want
+    # float32 vectors below float32's normal range are normal float64 numbers: aligned as well
+    q32 = qa.align_vectors((a0 * 1e-40).astype(np.float32), (b0 * 1e-40).astype(np.float32))[0]
+    assert q32.dtype == np.float32 and np.all(qa.distance(q32, qa.align_vectors(a0, b0)[0]) < 1e-3)

@@ -521,3 +521,126 @@ def test_angular_velocity_bitwise_any_chunking(client, rows, frame):
     lazy = qd.angular_velocity(chunked(q, rows), da.from_array(t, chunks=13), frame=frame)
     assert lazy.chunks[0] == chunked(q, rows).chunks[0]
     assert same(run(client, lazy), expect)
+
+
+# --------------------------------------------------------------------------
+# align_vectors and mean (issue 36.20)
+
+
+def _problems(p, n, seed=11, dtype=np.float64):
+    rng = np.random.default_rng(seed)
+    b = rng.standard_normal((p, n, 3))
+    a = qa.rotate(qa.random((p, 1), rng=rng), b) + 0.02 * rng.standard_normal((p, n, 3))
+    return a.astype(dtype), b.astype(dtype), rng.uniform(0.5, 2, (p, n))
+
+
+@pytest.mark.parametrize("rows", [1, 7, 40])
+def test_align_vectors_bitwise_any_chunking(client, rows):
+    a, b, w = _problems(40, 6)
+    for args, kw in (((a, b), {}), ((a, b, w), {}), ((a, b[0], w[0]), {}), ((a, b, w), {"return_sensitivity": True})):
+        expect = qa.align_vectors(*args, **kw)
+        lazy = qd.align_vectors(*[chunked(x, rows) if x.ndim == a.ndim else x for x in args], **kw)
+        assert isinstance(lazy, tuple) and len(lazy) == len(expect) and all(isinstance(x, da.Array) for x in lazy)
+        assert all(x.shape == e.shape and x.dtype == e.dtype for x, e in zip(lazy, expect))
+        assert lazy[0].chunks[0][0] == rows
+        got = run(client, lazy)
+        assert all(same(g, e) for g, e in zip(got, expect))
+    # Dask weights chunked otherwise, b chunked along its pairs (rechunked whole), float32
+    a32, b32, _ = _problems(40, 6, dtype=np.float32)
+    lazy = qd.align_vectors(chunked(a32, rows), da.from_array(b32, chunks=(13, 2, 3)), da.from_array(w, chunks=(9, 6)))
+    expect = qa.align_vectors(a32, b32, w)
+    assert lazy[0].dtype == np.float32 and all(same(g, e) for g, e in zip(run(client, lazy), expect))
+    # one pair per problem (the shortest arc) and a single vector
+    assert all(same(g, e) for g, e in zip(run(client, qd.align_vectors(chunked(a[:, :1], rows), b[:, :1])),
+                                          qa.align_vectors(a[:, :1], b[:, :1])))
+    assert all(same(g, e) for g, e in zip(dask.compute(*qd.align_vectors(a[0, 0], b[0, 0])),
+                                          qa.align_vectors(a[0, 0], b[0, 0])))
+
+
+def test_align_vectors_errors():
+    a, b, w = _problems(20, 4)
+    with pytest.raises(ValueError, match="same number of vectors"):
+        qd.align_vectors(chunked(a, 5), b[:, :3])
+    with pytest.raises(ValueError, match=r"`weights` to have shape \(\.\.\., 4\)"):
+        qd.align_vectors(chunked(a, 5), b, np.ones(3))
+    with pytest.raises(ValueError, match="`a` to have shape"):
+        qd.align_vectors(chunked(a[..., :2], 5), b)
+    w[13, 1:3] = np.inf  # several infinite weights: raised at compute, naming the problem in the whole batch
+    lazy = qd.align_vectors(chunked(a, 5), b, chunked(w, 5))
+    with pytest.raises(ValueError, match="row 13 has several"):
+        dask.compute(*lazy, scheduler="sync")
+
+
+@pytest.mark.parametrize("chunks", [(1, 50), (7, 11), (30, 50)])
+def test_mean_across_chunks(client, chunks):
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(12)
+    # random rotations (their mean is ill-conditioned: the worst case for the order of the sums)
+    # and a cluster around one rotation
+    for qs in (qa.random((30, 50), rng=rng), qa.multiply(qa.from_rotvec([0.3, -1, 2]), qa.from_rotvec(
+            0.3 * rng.standard_normal((30, 50, 3))))):
+        qs[::3] *= -2.5  # sign- and scale-blind
+        w = rng.random((30, 50))
+        x = da.from_array(qs, chunks=chunks + (4,))
+        r = Rotation.from_quat(qs, scalar_first=True)
+        for axis in (None, 0, 1, -1, (0, 1), ()):
+            for weights in (None, w, w[:1], da.from_array(w, chunks=(4, 17))):
+                ww = weights.compute() if isinstance(weights, da.Array) else weights
+                lazy = qd.mean(x, weights, axis=axis)
+                expect = qa.mean(qs, ww, axis=axis)
+                assert isinstance(lazy, da.Array) and lazy.shape == expect.shape and lazy.dtype == expect.dtype
+                got = lazy.compute(scheduler="sync")
+                assert np.all(qa.distance(got, expect) < 1e-12)
+                assert np.all(qa.distance(got, r.mean(weights=ww, axis=axis).as_quat(scalar_first=True)) < 1e-12)
+                whole = axis == () or (axis in (1, -1) and chunks[1] == 50) or chunks == (30, 50)
+                if whole:  # the averaged axes in one chunk: the in-memory sums, bitwise
+                    assert same(got, expect)
+    # on the cluster's worker processes; float32 stays float32
+    q32 = qs.astype(np.float32)
+    got = run(client, qd.mean(da.from_array(q32, chunks=chunks + (4,)), axis=1))
+    assert same(got, qa.mean(q32, axis=1)) if chunks[1] == 50 else np.all(qa.distance(got, qa.mean(q32, axis=1)) < 1e-6)
+    got = run(client, qd.mean(da.from_array(q32, chunks=chunks + (4,))))
+    assert got.dtype == np.float32 and qa.distance(got, qa.mean(q32)) < 1e-6
+
+
+def test_mean_edges_and_errors():
+    qs = qa.random(100, rng=13)
+    x = chunked(qs, 30)
+    # a single quaternion; all weights zero: the identity, as scipy
+    assert same(qd.mean(qs[5]).compute(), qa.mean(qs[5]))
+    assert same(qd.mean(qs[5], axis=0).compute(), qa.mean(qs[5], axis=0))
+    assert same(qd.mean(x, np.zeros(100)).compute(), qa.mean(qs, np.zeros(100)))
+    for bad in (3, (0, 1), 1.0):
+        with pytest.raises(ValueError, match="axis"):
+            qd.mean(x, axis=bad)
+    with pytest.raises(ValueError, match="broadcast"):
+        qd.mean(x, np.ones(7))
+    with pytest.raises(ValueError, match="at least one"):
+        qd.mean(chunked(np.ones((0, 4)), 5))
+    with pytest.raises(TypeError, match="weights"):
+        qd.mean(x, np.ones(100, complex))
+    # a bad row is named by its index in the whole array, at compute
+    b = qs.copy()
+    b[67] = 0.0
+    lazy = qd.mean(chunked(b, 30))
+    with pytest.raises(ValueError, match=r"`q` to be finite and non-zero; row 67 is zero"):
+        lazy.compute(scheduler="sync")
+    w = np.ones(100)
+    w[71] = -1
+    with pytest.raises(ValueError, match=r"`weights` to be non-negative; row 71"):
+        qd.mean(x, chunked(w, 30)).compute(scheduler="sync")
+    with pytest.raises(ValueError, match=r"index \(6, 7\) is zero"):
+        qd.mean(da.from_array(b.reshape(10, 10, 4), chunks=(3, 4, 4)), axis=0).compute(scheduler="sync")
+    # the blocks' sums are finite, their total is not
+    big = np.full(100, 1e307)
+    with pytest.raises(ValueError, match="overflows"), np.errstate(over="ignore"):  # (numpy's sum of the blocks)
+        qd.mean(x, chunked(big, 30)).compute(scheduler="sync")
+
+
+def test_mean_and_align_stay_lazy():
+    x = exploding((100, 4), 10)
+    for lazy in (qd.mean(x), qd.mean(x, np.ones(100)), qd.align_vectors(exploding((100, 3), 10)[:, None], [[1.0, 0, 0]])[0]):
+        assert isinstance(lazy, da.Array)
+        with pytest.raises(RuntimeError, match="was computed"):
+            lazy.compute(scheduler="sync")

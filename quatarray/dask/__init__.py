@@ -23,6 +23,11 @@ Scans and neighbours (exact whatever the chunking)
     block), ``angular_velocity`` and
     ``spline`` (each block sees the neighbouring keys across its borders;
     the key times and new times may be Dask arrays too, kept on the workers).
+Batches and reductions
+    ``align_vectors`` (problems chunked along the leading axes, each solved by
+    the in-memory kernel: bitwise the in-memory result) and ``mean`` (each
+    block's 4×4 sums Σ w q qᵀ/|q|², added across chunks, then one eigenvector
+    per result: the in-memory mean to the order of the sums, within 1e-13 rad).
 Files
     :func:`convert_file` and :func:`resample_file` stream ``.npy`` (and, with
     ``zarr`` installed, ``.zarr``) files through a scheduler: threads, a local
