@@ -35,6 +35,7 @@ _MODULES = {
     "transforms": ["VQS", "VQM", "interpolate"],
     "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],
+    "classes.rotation": ["Rotation"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}
