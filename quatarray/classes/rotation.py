@@ -93,6 +93,27 @@ def _house_in(a, first, name):
     return out.reshape(a.shape)
 
 
+def _map(kernel, a, cin, cout):
+    """``kernel(rows of a, rows of out)`` on the float array `a` of shape ``lead + cin``
+    (the arrays the class holds: no validation), giving ``lead + cout``; a 0-d result
+    as a numpy scalar."""
+    if a.ndim == len(cin):  # one row: the serial loop, called directly
+        out = np.empty((1,) + cout, a.dtype)
+        one = a[None]
+        if type(kernel) is E.FarRows:
+            if kernel.first.serial(one, out):
+                kernel.again(one, out)
+        else:
+            kernel.serial(one, out)
+        return out[0]
+    lead = a.shape[: a.ndim - len(cin)]
+    flat = a.reshape((-1,) + cin)
+    out = np.empty((flat.shape[0],) + cout, a.dtype)
+    kernel(flat, out)
+    res = out.reshape(lead + cout)
+    return res[()] if res.ndim == 0 else res
+
+
 def _floats(x, name):
     """`x` as a float32/float64 ndarray: the arrays the class holds pass as they are."""
     if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32):
@@ -428,9 +449,10 @@ class Rotation:
         """
         q = self._q
         out = np.empty(q.shape, q.dtype)
-        if q.size:
-            flat = q.reshape(-1, 4)
-            _quat_out(flat, bool(scalar_first), bool(canonical), out.reshape(-1, 4))
+        if q.ndim == 1:
+            _quat_out.serial(q[None], bool(scalar_first), bool(canonical), out[None])
+        elif q.size:
+            _quat_out(q.reshape(-1, 4), bool(scalar_first), bool(canonical), out.reshape(-1, 4))
         return out
 
     # ------------------------------------------------------------------
@@ -466,7 +488,7 @@ class Rotation:
                [ 0., -1.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return _conv.as_matrix(self._q)
+        return _map(_conv._as_matrix, self._q, _Q, (3, 3))
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -479,7 +501,9 @@ class Rotation:
         array([0.        , 0.        , 0.70710678, 0.70710678])
         """
         v = _shape_check(_floats(rotvec, "rotvec"), "rotvec", (3,), "(..., 3)")
-        q = _conv.from_rotvec(v, degrees=bool(degrees))
+        if degrees:
+            v = v * _RAD
+        q = _map(_conv._from_rotvec, v, (3,), _Q)
         return cls._from_house(q, q.ndim == 1)
 
     def as_rotvec(self, degrees=False):
@@ -491,7 +515,10 @@ class Rotation:
         >>> Rotation.from_euler("x", 30, degrees=True).as_rotvec(degrees=True).round(9) + 0.0
         array([30.,  0.,  0.])
         """
-        return _conv.as_rotvec(self._q, degrees=bool(degrees))
+        res = _map(_conv._as_rotvec, self._q, _Q, (3,))
+        if degrees:
+            res *= _DEG
+        return res
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -504,7 +531,7 @@ class Rotation:
         array([0.        , 0.        , 3.14159265])
         """
         p = _shape_check(_floats(mrp, "mrp"), "mrp", (3,), "(..., 3)")
-        q = _rep.from_mrp(p)
+        q = _map(_rep._from_mrp, p, (3,), _Q)
         return cls._from_house(q, q.ndim == 1)
 
     def as_mrp(self):
@@ -516,7 +543,7 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 3.141592653589793]).as_mrp().round(12) + 0.0
         array([0., 0., 1.])
         """
-        return _rep.as_mrp(self._q)
+        return _map(_rep._as_mrp, self._q, _Q, (3,))
 
     @classmethod
     def from_euler(cls, seq, angles, degrees=False):
@@ -530,7 +557,19 @@ class Rotation:
         >>> Rotation.from_euler("z", [[10], [20]], degrees=True).shape
         (2,)
         """
-        q = _eul.from_euler(seq, _floats(angles, "angles"), degrees=bool(degrees))
+        a = _floats(angles, "angles")
+        if type(seq) is str and len(seq) == 3 and a.shape == (3,):  # the lean path of single rotations
+            params = _eul._SEQS.get(seq)
+            if params is not None:
+                axes, intrinsic, _ = params
+                out = np.empty((1, 4), a.dtype)
+                far = np.empty(1, np.bool_)
+                args = (a.reshape(1, 3), axes[0], axes[1], axes[2], intrinsic, _RAD if degrees else 1.0, out, far)
+                _eul._from_euler.serial(*args)
+                if far[0]:
+                    _eul._from_euler_far.serial(*args)
+                return cls._from_house(out[0], True)
+        q = _eul.from_euler(seq, a, degrees=bool(degrees))
         return cls._from_house(q, q.ndim == 1)
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
@@ -615,6 +654,15 @@ class Rotation:
             (_rotate_inv if inverse else _rot._rotate_one).serial(*((q[None], v[None]) if inverse else (v[None], q[None])), out[None])
             return out
         ql, vl = q.shape[:-1], v.shape[:-1]
+        if ql == vl and v.dtype is q.dtype:
+            out = np.empty(v.shape, q.dtype)
+            if v.size:
+                qf, vf, of = q.reshape(-1, 4), v.reshape(-1, 3), out.reshape(-1, 3)
+                if inverse:
+                    _rotate_inv(qf, vf, of)
+                else:
+                    _rot._rotate(qf, vf, of)
+            return out
         if ql != vl:
             try:
                 np.broadcast_shapes(ql, vl)
@@ -643,6 +691,11 @@ class Rotation:
         if p.ndim == 1 and q.ndim == 1 and p.dtype is q.dtype:  # the lean path
             out = np.empty(4, p.dtype)
             _compose.serial(p[None], q[None], out[None])
+            return Rotation._from_house(out, self._single and other._single)
+        if p.shape == q.shape and p.dtype is q.dtype:
+            out = np.empty(p.shape, p.dtype)
+            if p.size:
+                _compose(p.reshape(-1, 4), q.reshape(-1, 4), out.reshape(-1, 4))
             return Rotation._from_house(out, self._single and other._single)
         pl, ql = p.shape[:-1] or (1,), q.shape[:-1] or (1,)
         if pl != ql:
@@ -695,7 +748,7 @@ class Rotation:
         q = self._q
         if q.ndim == 1:
             return Rotation._from_house(q * _CONJ[q.dtype], self._single)
-        return Rotation._from_house(_alg.conjugate(q), False)
+        return Rotation._from_house(_map(_alg._conjugate, q, _Q, _Q), False)
 
     def magnitude(self):
         """The rotation angles in [0, π].
@@ -706,7 +759,7 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 0.5], [3, 0, 0]]).magnitude()
         array([0.5, 3. ])
         """
-        return _alg.angle(self._q)
+        return _map(_alg._angle, self._q, _Q, ())
 
     def approx_equal(self, other, atol=None, degrees=False):
         """Whether the rotations equal those of `other` within `atol` (radians, or
@@ -914,6 +967,7 @@ class Rotation:
 
 
 _DEG = 180.0 / math.pi
+_RAD = math.pi / 180.0
 _CONJ = {d: np.array([1, -1, -1, -1], d) for d in _FLOATS}
 _XYZW = [1, 2, 3, 0]
 _WXYZ = [3, 0, 1, 2]
