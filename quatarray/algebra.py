@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, like, prange, rowloop, specialise
+from ._jit import RowLoop, inline, kernel, like, min_rows, prange, rowloop, specialise
 from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
@@ -223,8 +223,9 @@ def _outer_sum_rows(q, w, part):
             p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9] = s0, s1, s2, s3, s4, s5, s6, s7, s8, s9
 
 
-_outer_sum = kernel(_outer_sum_rows, parallel=True)
-_outer_sum_unit = kernel(specialise(_outer_sum_rows, "_unit", UNIT=True), parallel=True)
+# serial and parallel dispatchers (the parallel one compiles only for a large sum)
+_outer_sum = RowLoop(_outer_sum_rows)
+_outer_sum_unit = RowLoop(specialise(_outer_sum_rows, "_unit", UNIT=True))
 
 _PAIRS = [(0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3)]
 
@@ -234,7 +235,8 @@ def _outer_sums(qg, wg, unit=False):
     groups, count = qg.shape[:2]
     part = np.zeros((groups, max(1, -(-count // MEAN_BLOCK)), 10))
     if count:
-        (_outer_sum_unit if unit else _outer_sum)(qg, wg, part)
+        loop = _outer_sum_unit if unit else _outer_sum
+        (loop.parallel if groups * count >= min_rows() else loop.serial)(qg, wg, part)
     s = part.sum(axis=1)
     acc = np.empty((groups, 4, 4))
     for k, (r, c) in enumerate(_PAIRS):
