@@ -214,7 +214,14 @@ class Rotation:
     def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
         """From quaternions (scalar-last unless `scalar_first`), as scipy's
         ``Rotation(quat, normalize, copy, scalar_first)``; the ``from_...``
-        constructors are the documented way."""
+        constructors are the documented way.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation([0, 0, 0, 2]).as_quat()
+        array([0., 0., 0., 1.])
+        """
         a = _shape_check(_floats(quat, "quat"), "quat", _Q, "(..., 4)")
         if normalize:
             q = _house_in(a, bool(scalar_first), "quat")
@@ -294,7 +301,14 @@ class Rotation:
     @property
     def _quat(self):
         """scipy's internal array (x, y, z, w), ``(1, 4)`` for a single rotation: a
-        copy, for code written against scipy's internals (read only)."""
+        copy, for code written against scipy's internals (read only).
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation.identity()._quat
+        array([[0., 0., 0., 1.]])
+        """
         q = self.as_quat()
         return q[None] if self._single else q
 
@@ -339,7 +353,14 @@ class Rotation:
         return self._q.shape[0]
 
     def __bool__(self):
-        """Always True (also for an empty stack), as in scipy."""
+        """Always True (also for an empty stack), as in scipy.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> bool(Rotation.identity(0))
+        True
+        """
         return True
 
     def __getitem__(self, indexer):
@@ -403,20 +424,51 @@ class Rotation:
             yield Rotation._from_house(sub, sub.ndim == 1)
 
     def __getstate__(self):
+        """The stored array and the `single` flag (pickling, ``copy``).
+
+        Examples
+        --------
+        >>> import pickle
+        >>> from quatarray import Rotation
+        >>> pickle.loads(pickle.dumps(Rotation.identity(2))).shape
+        (2,)
+        """
         return (self._q, self._single)
 
     def __setstate__(self, state):
+        """Restore from :meth:`__getstate__` (a copy of the array)."""
         q, single = state
         self._q = np.array(q, copy=True)
         self._single = bool(single)
 
     def __copy__(self):
+        """A rotation holding a copy of the array (as scipy's copies do).
+
+        Examples
+        --------
+        >>> import copy
+        >>> from quatarray import Rotation
+        >>> r = Rotation.identity(2)
+        >>> copy.copy(r).wxyz is r.wxyz, copy.deepcopy(r).shape
+        (False, (2,))
+        """
         return Rotation._from_house(self._q.copy(), self._single)
 
     def __deepcopy__(self, memo):
+        """As :meth:`__copy__` (the array holds no references)."""
         return Rotation._from_house(self._q.copy(), self._single)
 
     def __repr__(self):
+        """scipy's: ``Rotation.from_matrix(...)`` with the matrices.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation.identity()
+        Rotation.from_matrix(array([[1., 0., 0.],
+                                    [0., 1., 0.],
+                                    [0., 0., 1.]]))
+        """
         m = f"{self.as_matrix()!r}".splitlines()
         m[1:] = [" " * 21 + m[i] for i in range(1, len(m))]
         return "Rotation.from_matrix(" + "\n".join(m) + ")"
