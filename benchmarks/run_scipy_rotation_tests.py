@@ -48,9 +48,8 @@ class _Swap:
 
 
 def main(argv):
-    import scipy.spatial.transform as T
-
     import scipy
+    import scipy.spatial.transform as T
 
     root = os.path.dirname(scipy.__file__)
     path = os.path.join(os.path.dirname(T.__file__), "tests", "test_rotation.py")

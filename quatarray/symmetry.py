@@ -112,7 +112,7 @@ def create_group(group, axis="Z", dtype=np.float64):
            [0., 1., 0., 0.]])
     """
     if not isinstance(group, str):
-        raise ValueError(f"Expected `group` to be a string ('I', 'O', 'T', 'Dn' or 'Cn'), got {group!r}.")
+        raise ValueError(f"Expected `group` to be a string ('I', 'O', 'T', 'Dn' or 'Cn'), got {group!r}.")  # noqa: TRY004 - scipy raises ValueError
     if axis not in ("x", "y", "z", "X", "Y", "Z"):
         raise ValueError(f"Expected `axis` to be one of x, y, z, X, Y, Z, got {axis!r}.")
     d = float_dtype(dtype)

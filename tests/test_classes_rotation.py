@@ -250,6 +250,14 @@ def test_davenport_fewer_axes(k):
     same(R.from_davenport([0, 0, 1], "e", 0.7), S.from_davenport([0, 0, 1], "e", 0.7))
 
 
+@pytest.mark.parametrize("shape", [(2, 3), (0,), (70,)])
+def test_as_davenport_stacks(shape):
+    axes = _axes(rng_(33), False)
+    r, s = pair(shape, 34)
+    close(r.as_davenport(axes, "e"), s.as_davenport(axes, "e"), 1e-10)
+    close(r.as_davenport(axes.tolist(), "intrinsic", degrees=True), s.as_davenport(axes, "intrinsic", degrees=True), 1e-8)
+
+
 def test_davenport_gimbal_lock_warns():
     axes = np.eye(3)[[2, 1, 2]]
     r = R.from_davenport(axes, "e", [0.3, 0.0, 0.2])
