@@ -191,9 +191,22 @@ class Rotation:
     object and the functional style (``quatarray.rotate(r.wxyz, v)``).
 
     Beyond scipy: float32 in stays float32 (scipy computes in float64), and
-    the ``wxyz``/``from_wxyz`` pair. Differences: a tuple index ``r[i, j]``
-    indexes the stack as numpy does (scipy 1.17 reads the tuple as a list of
-    first-axis indices), and an ``Ellipsis`` may be part of an index.
+    the ``wxyz``/``from_wxyz`` pair.
+
+    Differences from scipy 1.17, all where scipy's answer is an accident:
+
+    - a tuple index ``r[i, j]`` indexes the stack as numpy does (scipy reads
+      the tuple as a list of first-axis indices), and an ``Ellipsis`` may be
+      part of an index;
+    - ``reduce``: where several members l·p·r have the same smallest angle
+      (groups sharing members), the first in the order of `left`, then
+      `right`, is taken; scipy's pick among them follows its rounding;
+    - ``as_davenport`` with the first axis equal to the third gives the angle
+      set of ``as_euler`` (middle angle ≥ 0); scipy picks either set by the
+      sign of rounding noise;
+    - a non-Rotation argument of ``approx_equal`` or ``reduce`` raises
+      ``TypeError`` (scipy: ``AttributeError``); error messages name the
+      problem in scipy's words, sometimes with more detail.
 
     Examples
     --------
