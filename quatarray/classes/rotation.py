@@ -8,6 +8,7 @@ functional layer (:func:`quatarray.multiply`, :func:`quatarray.rotate`, ...).
 without a copy.
 """
 
+import inspect
 import math
 import operator
 import warnings
@@ -1126,6 +1127,19 @@ class Rotation:
         r = Rotation._from_house(res[0], True)
         return (r,) + tuple(res[1:])
 
+
+def _scipy_random_signature():
+    """``random``'s signature as scipy shows it: (num=None, rng=None, *, shape=None,
+    random_state=None); the implementation takes ``rng`` by position apart (scipy's
+    transition from ``random_state``: a positional seed is a legacy one)."""
+    P = inspect.Parameter
+    return inspect.Signature([
+        P("num", P.POSITIONAL_OR_KEYWORD, default=None), P("rng", P.POSITIONAL_OR_KEYWORD, default=None),
+        P("shape", P.KEYWORD_ONLY, default=None), P("random_state", P.KEYWORD_ONLY, default=None),
+    ])
+
+
+Rotation.__dict__["random"].__func__.__signature__ = _scipy_random_signature()
 
 _DEG = 180.0 / math.pi
 _RAD = math.pi / 180.0
