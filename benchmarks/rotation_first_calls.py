@@ -53,6 +53,6 @@ for name in only:
         if "r." in expr or "r *" in expr or "r **" in expr or "r1" in expr:
             code += "r = R.from_wxyz(qa.random(5, rng=1)); r1 = R.from_wxyz(qa.random(None, rng=1))\n"
         code += f"t = time.perf_counter(); {expr}; print(time.perf_counter() - t)\n"
-        env = dict(os.environ, NUMBA_CACHE_DIR=d, PYTHONPATH=os.getcwd())
+        env = dict(os.environ, NUMBA_CACHE_DIR=d, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
         out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
         print(f"{name:16s} {out.stdout.strip() or out.stderr[-300:]}", flush=True)

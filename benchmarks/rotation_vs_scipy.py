@@ -8,14 +8,18 @@ that the method wraps.
 """
 
 import argparse
+import os
+import sys
 import timeit
 import warnings
 
 import numpy as np
 from scipy.spatial.transform import Rotation as S
 
-import quatarray as qa
-from quatarray import Rotation as Q
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout's quatarray
+
+import quatarray as qa  # noqa: E402
+from quatarray import Rotation as Q  # noqa: E402
 
 
 def cases_big(n, rng):
