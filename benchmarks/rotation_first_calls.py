@@ -4,7 +4,11 @@
 method with ``NUMBA_CACHE_DIR`` a new empty folder; prints the seconds of the
 call alone (the import and the objects it needs are made before the clock starts).
 """
-import os, subprocess, sys, tempfile, json
+import os
+import subprocess
+import sys
+import tempfile
+
 CALLS = {
  "from_quat (N)": "R.from_quat(q)",
  "from_quat (1)": "R.from_quat(q[0])",
@@ -54,5 +58,5 @@ for name in only:
             code += "r = R.from_wxyz(qa.random(5, rng=1)); r1 = R.from_wxyz(qa.random(None, rng=1))\n"
         code += f"t = time.perf_counter(); {expr}; print(time.perf_counter() - t)\n"
         env = dict(os.environ, NUMBA_CACHE_DIR=d, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=False)
         print(f"{name:16s} {out.stdout.strip() or out.stderr[-300:]}", flush=True)

@@ -18,8 +18,8 @@ from scipy.spatial.transform import Rotation as S
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout's quatarray
 
-import quatarray as qa  # noqa: E402
-from quatarray import Rotation as Q  # noqa: E402
+import quatarray as qa
+from quatarray import Rotation as Q
 
 
 def cases_big(n, rng):
