@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, like, prange, rowloop
+from ._jit import RowLoop, inline, kernel, like, min_rows, prange, rowloop, specialise
 from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
@@ -178,21 +178,70 @@ def _cumprod(q, out):
             out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = acc
 
 
-@kernel
-def _outer_sum(q, w, acc):
-    # For each group g: acc[g] (4, 4) float64 += w_i q_i q_iᵀ / |q_i|² over the rows
-    # i of q[g] (G, M, 4), w (G, M), accumulated in float64; each q_i is first divided
-    # by its largest |component| (no overflow or underflow in the squares, whatever
-    # its scale; a zero, inf or nan row makes acc[g] nan).
+MEAN_BLOCK = 16384  # rows per partial sum of _outer_sum (blocks run in parallel)
+
+
+UNIT = False  # rebound to True in _outer_sum_unit
+
+
+def _outer_sum_rows(q, w, part):
+    # For each group g and block b of its rows: part[g, b] (10,) float64 the sums
+    # Σ w_i q_i q_iᵀ / |q_i|² (its 10 distinct entries, in the order of _PAIRS) over
+    # the rows i of q[g] (G, M, 4), w (G, M) in that block, accumulated in float64.
+    # A row far from unit scale (or zero, inf, nan) is first divided by its largest
+    # |component| (no overflow or underflow in the squares; zero, inf and nan rows
+    # make the sums nan). Ten scalar accumulators per block stay in registers.
+    # UNIT (the copy _outer_sum_unit, for Rotation.mean, whose quaternions are unit
+    # as scipy's are): Σ w_i q_i q_iᵀ, without the division (a third of the time).
+    m = q.shape[1]
+    nb = part.shape[1]
     for g in range(q.shape[0]):
-        for i in range(q.shape[1]):
-            a = (np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3]))
-            m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
-            a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
-            s = np.float64(w[g, i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-            for r in range(4):
-                for c in range(4):
-                    acc[g, r, c] += s * a[r] * a[c]
+        for b in prange(nb):
+            s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = 0.0
+            for i in range(b * MEAN_BLOCK, min(m, (b + 1) * MEAN_BLOCK)):
+                a0, a1, a2, a3 = np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3])
+                if UNIT:
+                    k = np.float64(w[g, i])
+                else:
+                    n2 = a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3
+                    if E.far_scale(n2):
+                        mx = max(max(abs(a0), abs(a1)), max(abs(a2), abs(a3)))
+                        a0, a1, a2, a3 = a0 / mx, a1 / mx, a2 / mx, a3 / mx
+                        n2 = a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3
+                    k = np.float64(w[g, i]) / n2
+                s0 += k * a0 * a0
+                s1 += k * a0 * a1
+                s2 += k * a0 * a2
+                s3 += k * a0 * a3
+                s4 += k * a1 * a1
+                s5 += k * a1 * a2
+                s6 += k * a1 * a3
+                s7 += k * a2 * a2
+                s8 += k * a2 * a3
+                s9 += k * a3 * a3
+            p = part[g, b]
+            p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9] = s0, s1, s2, s3, s4, s5, s6, s7, s8, s9
+
+
+# serial and parallel dispatchers (the parallel one compiles only for a large sum)
+_outer_sum = RowLoop(_outer_sum_rows)
+_outer_sum_unit = RowLoop(specialise(_outer_sum_rows, "_unit", UNIT=True))
+
+_PAIRS = [(0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3)]
+
+
+def _outer_sums(qg, wg, unit=False):
+    """``(G, 4, 4)`` float64: the symmetric sums of :func:`_outer_sum` for each group."""
+    groups, count = qg.shape[:2]
+    part = np.zeros((groups, max(1, -(-count // MEAN_BLOCK)), 10))
+    if count:
+        loop = _outer_sum_unit if unit else _outer_sum
+        (loop.parallel if groups * count >= min_rows() else loop.serial)(qg, wg, part)
+    s = part.sum(axis=1)
+    acc = np.empty((groups, 4, 4))
+    for k, (r, c) in enumerate(_PAIRS):
+        acc[:, r, c] = acc[:, c, r] = s[:, k]
+    return acc
 
 
 # --------------------------------------------------------------------------
@@ -473,6 +522,18 @@ def mean(q, weights=None, axis=None):
     >>> qa.mean(qa.random((3, 5), rng=0), axis=1).shape
     (3, 4)
     """
+    a, w, red = mean_inputs(q, weights, axis)
+    return mean_solve(mean_sums(a, w, red), a.dtype)
+
+
+# mean in steps: the checked inputs, the sums and the solve. quatarray.dask.mean runs
+# the sums on each block and the solve once on the sum of the blocks' sums;
+# Rotation.mean takes the sums of unit quaternions and solves in scipy's order.
+
+
+def mean_inputs(q, weights=None, axis=None):
+    """:func:`mean`'s arguments checked: ``(a, w, red)``, the quaternions (..., 4), the
+    float64 weights of their leading shape and the sorted leading axes to reduce."""
     a = check_core(as_float(q, "q"), "q", Q)
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
@@ -480,11 +541,7 @@ def mean(q, weights=None, axis=None):
     w = mean_weights(weights, a.shape[:-1])
     if weights is not None:
         mean_check_weights(w)
-    return mean_solve(mean_sums(a, w, red), a.dtype)
-
-
-# mean in two steps, the sums and the solve, which quatarray.dask.mean runs on each
-# block and once on the sum of the blocks' sums
+    return a, w, red
 
 
 def mean_axes(shape, axis):
@@ -501,7 +558,7 @@ def mean_axes(shape, axis):
 def mean_weights(weights, lead):
     """:func:`mean`'s `weights` as float64 of the leading shape `lead` (ones for None)."""
     if weights is None:
-        return np.ones(lead)
+        return np.broadcast_to(1.0, lead)
     w = as_float(weights, "weights", np.float64)
     try:
         return np.broadcast_to(w, lead)
@@ -516,11 +573,12 @@ def mean_check_weights(w):
         raise ValueError(f"Expected `weights` to be non-negative; {where(k, w.shape)} has weight {w.reshape(-1)[k]}.")
 
 
-def mean_sums(a, w, red):
-    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``) over the leading
-    axes `red` of the quaternions `a` (..., 4), `w` the (non-negative) weights of a's
-    leading shape. A zero, inf or nan quaternion or weight raises ``ValueError`` naming
-    the first such row of `a`."""
+def mean_sums(a, w, red, unit=False):
+    """Σ wᵢ qᵢqᵢᵀ/|qᵢ|² (float64, shape ``(kept leading axes) + (4, 4)``, (w, x, y, z)
+    order) over the leading axes `red` of the quaternions `a` (..., 4), `w` the
+    (non-negative) weights of a's leading shape. `unit`: the quaternions are unit
+    (Σ wᵢ qᵢqᵢᵀ, faster). A zero, inf or nan quaternion or weight raises ``ValueError``
+    naming the first such row of `a`."""
     lead = a.shape[:-1]
     keep = tuple(k for k in range(len(lead)) if k not in red)
     order = keep + red
@@ -529,10 +587,9 @@ def mean_sums(a, w, red):
     count = int(np.prod([lead[k] for k in red]))
     qg = np.transpose(a, order + (len(lead),)).reshape(groups, count, 4)
     wg = np.transpose(w, order).reshape(groups, count)
-    acc = np.zeros((groups, 4, 4))
-    _outer_sum(qg, wg, acc)
+    acc = _outer_sums(qg, wg, unit)
     if not np.isfinite(acc).all():
-        raise _mean_bad_row(a.reshape(-1, 4), w.reshape(-1), lead)
+        raise _mean_bad_row(a.reshape(-1, 4), np.broadcast_to(w, lead).reshape(-1), lead)
     return acc.reshape(out_lead + (4, 4))
 
 
