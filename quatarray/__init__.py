@@ -35,6 +35,7 @@ _MODULES = {
     "transforms": ["VQS", "VQM", "interpolate"],
     "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],
+    "classes.rotation": ["Rotation"],
     "rigid": [
         "pose_compose", "pose_inverse", "pose_apply", "pose_as_matrix", "pose_from_matrix",
         "as_dual_quat", "from_dual_quat", "as_exp_coords", "from_exp_coords",
