@@ -273,6 +273,15 @@ def _power(q, t, k, sign, qo, to):
 
 
 @rowloop
+def _components(t, q, sign, qo, to):
+    for i in prange(q.shape[0]):
+        x = E.load3(t, i)
+        a = signed(unit(E.load4(q, i)), sign)
+        E.store4(qo, i, a)
+        E.store3(to, i, x)
+
+
+@rowloop
 def _sclerp(q0, t0, q1, t1, s, sign, qo, to):
     for i in prange(q0.shape[0]):
         a = unit(E.load4(q0, i))
