@@ -72,7 +72,9 @@ SERIES_BELOW = 0.25
 @traced
 def log_rotation(a):
     """(φ, h, c, s) of a unit quaternion a: its rotation vector φ (angle 2h, h in
-    [0, π/2]) and c = |w| = cos h, s = |u| = sin h."""
+    [0, π/2]) and c = |w| = cos h, s = |u| = sin h. At a half turn (w = 0) the
+    axis's sign is scipy's (:func:`matrix_sign`)."""
+    a = matrix_sign(a)
     w = a[0]
     flip = w < like(w, 0.0)
     w = abs(w)
