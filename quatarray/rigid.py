@@ -418,7 +418,7 @@ def as_dual_quat(q, t, scalar_first=True, out=None):
     Examples
     --------
     >>> import quatarray as qa
-    >>> qa.as_dual_quat([1, 0, 0, 0], [2, 4, 6])
+    >>> qa.as_dual_quat([1, 0, 0, 0], [2, 4, 6]) + 0.0
     array([1., 0., 0., 0., 0., 1., 2., 3.])
     """
     return elementwise(_bind(_as_dual_quat, 2, 0, int(not scalar_first)), [(q, "q", Q), (t, "t", V)], [(8,)], out)

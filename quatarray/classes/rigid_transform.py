@@ -56,7 +56,8 @@ class RigidTransform:
     --------
     >>> import numpy as np
     >>> from quatarray import RigidTransform as Tf, Rotation as R
-    >>> tf = Tf.from_components([1, 2, 3], R.from_rotvec([0, 0, np.pi / 2]))
+    >>> r = R.from_quat([0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)])  # 90° about z
+    >>> tf = Tf.from_components([1, 2, 3], r)
     >>> np.round(tf.apply([1, 0, 0]), 12)
     array([1., 3., 3.])
     >>> np.round((tf ** 0.5 * tf ** 0.5).as_matrix() - tf.as_matrix(), 12) + 0.0
@@ -344,13 +345,12 @@ class RigidTransform:
     def __pow__(self, n):
         """The transforms to the real power `n` (a scalar): screw motion along the
         transform, ``n`` = 0 the identity, −1 the inverse."""
-        if isinstance(n, np.ndarray) or hasattr(n, "__array__"):
-            n = np.asarray(n)
-            if n.shape == (1,):
-                n = n[0]
-            elif n.ndim != 0:
-                raise ValueError("Array exponent must be a scalar")
-        n = float(n)
+        if isinstance(n, np.ndarray) and n.ndim != 0:
+            raise TypeError(f"Expected the exponent to be a real scalar, got an array of shape {n.shape}.")
+        try:
+            n = float(n)
+        except (TypeError, ValueError):
+            raise TypeError(f"Expected the exponent to be a real scalar, got {type(n).__name__}.") from None
         if n == 0:
             return RigidTransform.identity(shape=self.shape)._astype(self._q.dtype)
         if n == -1:
@@ -415,13 +415,20 @@ class RigidTransform:
             raise TypeError("Single transform has no len")
         return self._q.shape[0]
 
+    def _rows(self, indexer):
+        """The flat row numbers that `indexer` picks from the leading shape (numpy's rules:
+        integers, slices, None, Ellipsis, integer and boolean arrays, tuples of them)."""
+        lead = self._q.shape[:-1]
+        return np.arange(math.prod(lead)).reshape(lead)[indexer]
+
     def __getitem__(self, indexer):
         if self._single:
             raise TypeError("Single transform is not subscriptable.")
         if isinstance(indexer, np.ndarray) and indexer.dtype.kind in "iu" and self._q.shape[0] == 0:
             raise IndexError("cannot take from an empty array")
-        q = np.array(self._q[indexer])
-        t = np.array(self._t[indexer])
+        rows = self._rows(indexer)
+        q = self._q.reshape(-1, 4)[rows]
+        t = self._t.reshape(-1, 3)[rows]
         return RigidTransform._from_house(q, t)
 
     def __setitem__(self, indexer, value):
@@ -429,10 +436,13 @@ class RigidTransform:
             raise TypeError("Single transform is not subscriptable.")
         if not isinstance(value, RigidTransform):
             raise TypeError("value must be a RigidTransform object")
-        if not (self._q.flags.writeable and self._t.flags.writeable):
-            self._q, self._t = self._q.copy(), self._t.copy()
-        self._q[indexer] = value._q
-        self._t[indexer] = value._t
+        rows = self._rows(indexer)
+        for name, k in (("_q", 4), ("_t", 3)):
+            a = getattr(self, name)
+            if not a.flags.writeable or not a.flags.c_contiguous:  # a broadcast or strided array: own a copy
+                a = np.ascontiguousarray(a).copy()
+                setattr(self, name, a)
+            a.reshape(-1, k)[rows] = np.broadcast_to(getattr(value, name), rows.shape + (k,))
 
     def __iter__(self):
         if self._single:
