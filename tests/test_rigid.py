@@ -430,3 +430,33 @@ def test_pose_spline_rules():
         qa.pose_spline(times, q, t, new, poses="bogus")
     with pytest.raises(ValueError, match="new_times"):
         qa.pose_spline(times, q, t, new + 100)
+
+
+# --------------------------------------------------------------------------
+# the command line: resample --poses screw on a pose stream (TUM layout)
+
+
+def test_cli_resample_poses_screw(tmp_path):
+    from quatarray.cli import main
+
+    rng = np.random.default_rng(14)
+    times = np.cumsum(rng.uniform(0.05, 0.15, 12))
+    q, t = poses(rng, 12)
+    q = qa.unflip(q)
+    src = tmp_path / "in.txt"
+    rows = np.column_stack([times, t, q[:, 1:], q[:, :1]])  # TUM: t tx ty tz qx qy qz qw
+    np.savetxt(src, rows, fmt="%.17g", header="timestamp tx ty tz qx qy qz qw")
+    out = {}
+    for rule in ("linear", "screw"):
+        dst = tmp_path / f"{rule}.txt"
+        assert main(["resample", str(src), str(dst), "--rate", "50", "--poses", rule, "--no-progress"]) == 0
+        out[rule] = np.loadtxt(dst)
+    new = out["screw"][:, 0]
+    qs, ts = qa.pose_spline(times, q, t, new, poses="screw")
+    np.testing.assert_allclose(out["screw"][:, 1:4], ts, atol=1e-12)
+    same_rotation(out["screw"][:, [7, 4, 5, 6]], qs, 1e-12)
+    lin = np.stack([np.interp(new, times, t[:, j]) for j in range(3)], -1)
+    np.testing.assert_allclose(out["linear"][:, 1:4], lin, atol=1e-12)  # the default rule: linear positions
+    assert not np.allclose(out["screw"][:, 1:4], lin, atol=1e-6)  # the screw couples them to the rotation
+    assert main(["resample", str(src), str(tmp_path / "x.txt"), "--rate", "50", "--poses", "screw",
+                 "--scheduler", "local", "--no-progress"]) == 2
