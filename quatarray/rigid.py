@@ -3,9 +3,9 @@
 A pose is a rotation and a translation, x ↦ R(q) x + t, held as two arrays:
 ``q (..., 4)`` quaternions in (w, x, y, z) order and ``t (..., 3)``
 translations, whose leading dimensions broadcast like numpy. The
-quaternions may have any non-zero scale (within about 1e±75 in float64,
-1e±9 in float32: each row is divided by its norm); the quaternions returned
-are unit. float32 stays float32, mixed types give float64.
+quaternions may have any non-zero scale (each row is divided by its norm,
+after an exact power-of-two scaling, so 1e-300 and 1e300 work too); the
+quaternions returned are unit. float32 stays float32, mixed types give float64.
 
 Layouts
 -------
@@ -43,6 +43,13 @@ def unit(q):
     """q / |q| (no scaling: moderate |q| only)."""
     n = np.sqrt(E.qdot(q, q))
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+@inline
+def unit_any(q):
+    """q / |q| for any non-zero scale of q (:func:`quatarray._elements.qscaled` first:
+    exact powers of two, branch-free); zero gives nan."""
+    return unit(E.qscaled(q)[0])
 
 
 @traced
@@ -161,8 +168,8 @@ def signed(q, sign):
 @rowloop
 def _compose(qa, ta, qb, tb, sign, qo, to):
     for i in prange(qa.shape[0]):
-        a = unit(E.load4(qa, i))
-        b = unit(E.load4(qb, i))
+        a = unit_any(E.load4(qa, i))
+        b = unit_any(E.load4(qb, i))
         t = E.vadd(rotate_unit(a, E.load3(tb, i)), E.load3(ta, i))
         q = signed(E.qmul(a, b), sign)
         E.store4(qo, i, q)
@@ -172,7 +179,7 @@ def _compose(qa, ta, qb, tb, sign, qo, to):
 @rowloop
 def _invert(q, t, sign, qo, to):
     for i in prange(q.shape[0]):
-        c = E.qconj(unit(E.load4(q, i)))
+        c = E.qconj(unit_any(E.load4(q, i)))
         x = rotate_unit(c, E.load3(t, i))
         E.store4(qo, i, signed(c, sign))
         E.store3(to, i, (-x[0], -x[1], -x[2]))
@@ -181,7 +188,7 @@ def _invert(q, t, sign, qo, to):
 @rowloop
 def _apply(q, t, v, inverse, out):
     for i in prange(q.shape[0]):
-        a = E.load4(q, i)
+        a = E.qscaled(E.load4(q, i))[0]
         n2 = E.qdot(a, a)
         x = E.load3(v, i)
         d = E.load3(t, i)
@@ -195,7 +202,7 @@ def _apply(q, t, v, inverse, out):
 @rowloop
 def _as_matrix(q, t, out):
     for i in prange(q.shape[0]):
-        a = E.load4(q, i)
+        a = E.qscaled(E.load4(q, i))[0]
         m = E.qmatrix_raw(a, E.qdot(a, a))
         x = E.load3(t, i)
         zero = like(m[0], 0.0)
@@ -208,7 +215,7 @@ def _as_matrix(q, t, out):
 @rowloop
 def _as_dual_quat(q, t, sign, last, out):
     for i in prange(q.shape[0]):
-        a = signed(unit(E.load4(q, i)), sign)
+        a = signed(unit_any(E.load4(q, i)), sign)
         x = E.load3(t, i)
         half = like(a[0], 0.5)
         c = E.cross(x, (a[1], a[2], a[3]))
@@ -253,7 +260,7 @@ def _from_dual_quat(dq, last, sign, qo, to):
 @rowloop
 def _as_exp_coords(q, t, out):
     for i in prange(q.shape[0]):
-        phi, u = log_pose(unit(E.load4(q, i)), E.load3(t, i))
+        phi, u = log_pose(unit_any(E.load4(q, i)), E.load3(t, i))
         out[i, 0], out[i, 1], out[i, 2] = phi
         out[i, 3], out[i, 4], out[i, 5] = u
 
@@ -269,7 +276,7 @@ def _from_exp_coords(e, sign, qo, to):
 @rowloop
 def _power(q, t, k, sign, qo, to):
     for i in prange(q.shape[0]):
-        a, x = power_pose(unit(E.load4(q, i)), E.load3(t, i), k[i])
+        a, x = power_pose(unit_any(E.load4(q, i)), E.load3(t, i), k[i])
         E.store4(qo, i, signed(a, sign))
         E.store3(to, i, x)
 
@@ -278,7 +285,7 @@ def _power(q, t, k, sign, qo, to):
 def _components(t, q, sign, qo, to):
     for i in prange(q.shape[0]):
         x = E.load3(t, i)
-        a = signed(unit(E.load4(q, i)), sign)
+        a = signed(unit_any(E.load4(q, i)), sign)
         E.store4(qo, i, a)
         E.store3(to, i, x)
 
@@ -286,8 +293,8 @@ def _components(t, q, sign, qo, to):
 @rowloop
 def _sclerp(q0, t0, q1, t1, s, sign, qo, to):
     for i in prange(q0.shape[0]):
-        a = unit(E.load4(q0, i))
-        b = unit(E.load4(q1, i))
+        a = unit_any(E.load4(q0, i))
+        b = unit_any(E.load4(q1, i))
         x0 = E.load3(t0, i)
         c = E.qconj(a)
         qr = E.qmul(c, b)  # T0⁻¹ T1

@@ -460,3 +460,24 @@ def test_cli_resample_poses_screw(tmp_path):
     assert not np.allclose(out["screw"][:, 1:4], lin, atol=1e-6)  # the screw couples them to the rotation
     assert main(["resample", str(src), str(tmp_path / "x.txt"), "--rate", "50", "--poses", "screw",
                  "--scheduler", "local", "--no-progress"]) == 2
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-30, 1e30, 1e300])
+def test_quaternions_of_any_scale(scale):
+    rng = np.random.default_rng(15)
+    q, t = poses(rng, 12)
+    v = rng.normal(size=(12, 3))
+    big = q * scale
+    np.testing.assert_allclose(qa.pose_apply(big, t, v), qa.pose_apply(q, t, v), atol=1e-14)
+    np.testing.assert_allclose(qa.pose_apply(big, t, v, inverse=True), qa.pose_apply(q, t, v, inverse=True), atol=1e-14)
+    np.testing.assert_allclose(qa.pose_as_matrix(big, t), qa.pose_as_matrix(q, t), atol=1e-15)
+    np.testing.assert_allclose(qa.as_dual_quat(big, t), qa.as_dual_quat(q, t), atol=1e-15)
+    np.testing.assert_allclose(qa.as_exp_coords(big, t), qa.as_exp_coords(q, t), atol=1e-14)
+    for f, args, ref in [(qa.pose_compose, (big, t, big, t), (q, t, q, t)), (qa.pose_inverse, (big, t), (q, t)),
+                         (qa.sclerp, (big, t, big[::-1], t[::-1], 0.3), (q, t, q[::-1], t[::-1], 0.3)),
+                         (qa.pose_power, (big, t, 0.7), (q, t, 0.7))]:
+        a, b = f(*args), f(*ref)
+        same_rotation(a[0], b[0], 1e-15)
+        np.testing.assert_allclose(a[1], b[1], atol=1e-14)
+    dq = qa.as_dual_quat(q, t) * scale
+    np.testing.assert_allclose(matrix(*qa.from_dual_quat(dq)), matrix(q, t), atol=1e-14)
