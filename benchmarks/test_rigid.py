@@ -19,9 +19,8 @@ from scipy.spatial.transform import RigidTransform as ST
 from scipy.spatial.transform import Rotation as SR
 
 import quatarray as qa
-from quatarray import RigidTransform as QT
-
 from conftest import run
+from quatarray import RigidTransform as QT
 
 N = 1_000_000
 LOOP = 2_000
@@ -74,7 +73,7 @@ OPS = {
 def test_rigid_transform(benchmark, op, lib):
     benchmark.group = f"RigidTransform.{op} 1e6"
     args = pick(lib)
-    fn = lambda: OPS[op](*args)  # noqa: E731
+    fn = lambda: OPS[op](*args)
     fn()  # compile and warm the memory outside the timing
     run(benchmark, fn, N, slow=lib == "scipy")
 
@@ -94,7 +93,7 @@ def test_sclerp(benchmark, lib, sclerp_data):
     benchmark.group = f"ScLERP {LOOP} poses"
     q0, t0, q1, t1, s = sclerp_data
     if lib == "quatarray":
-        fn = lambda: qa.sclerp(q0, t0, q1, t1, s)  # noqa: E731
+        fn = lambda: qa.sclerp(q0, t0, q1, t1, s)
     else:
         pt = pytest.importorskip("pytransform3d.transformations")
         a = [pt.dual_quaternion_from_pq(np.concatenate([t0[i], q0[i]])) for i in range(LOOP)]
@@ -114,6 +113,6 @@ def test_sclerp_1e6(benchmark):
     d = data()
     q0, q1 = d["q"].wxyz, d["q2"].wxyz
     t0, t1 = d["q"].xyz, d["q2"].xyz
-    fn = lambda: qa.sclerp(q0, t0, q1, t1, d["t"])  # noqa: E731
+    fn = lambda: qa.sclerp(q0, t0, q1, t1, d["t"])
     fn()
     run(benchmark, fn, N)

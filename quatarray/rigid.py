@@ -21,15 +21,20 @@ joins two poses: ``T0 · exp(s · log(T0⁻¹ T1))``, the shorter way round
 (rotation angle at most π).
 """
 
-import math
-
 import numpy as np
 
 from . import _elements as E
 from ._jit import inline, like, prange, rowloop
 from ._trace import select, traced
 from ._trig import half_arc
-from ._validate import as_float, check_core, elementwise, integer, key_times, result_dtype
+from ._validate import (
+    as_float,
+    check_core,
+    elementwise,
+    integer,
+    key_times,
+    result_dtype,
+)
 
 Q = (4,)
 V = (3,)
@@ -410,8 +415,8 @@ def pose_from_matrix(m, assume_valid=False):
     >>> q, t
     (array([1., 0., 0., 0.]), array([0., 0., 0.]))
     """
-    from .conversions import from_matrix
     from ._validate import where
+    from .conversions import from_matrix
 
     a = check_core(as_float(m, "m"), "m", (4, 4))
     last = a[..., 3, :]

@@ -268,17 +268,17 @@ def test_extreme_translations(scale):
     ref = qa.as_exp_coords(q, tf_t)
     np.testing.assert_allclose(e[:, 3:] / scale, ref[:, 3:], rtol=1e-13)
     np.testing.assert_array_equal(e[:, :3], ref[:, :3])
-    q2, t2 = qa.from_exp_coords(e)
+    _q2, t2 = qa.from_exp_coords(e)
     np.testing.assert_allclose(t2 / scale, tf_t, rtol=1e-12, atol=1e-12 * np.abs(tf_t).max())
     dq = qa.as_dual_quat(q, t)
     assert np.all(np.isfinite(dq))
-    q3, t3 = qa.from_dual_quat(dq)
+    _q3, t3 = qa.from_dual_quat(dq)
     np.testing.assert_allclose(t3 / scale, tf_t, rtol=1e-12, atol=1e-13)
     v = rng.normal(size=(20, 3)) * scale
     np.testing.assert_allclose(qa.pose_apply(q, t, v, inverse=True) / scale,
                                qa.pose_apply(q, tf_t, v / scale, inverse=True), rtol=1e-12, atol=1e-13)
-    q4, t4 = qa.sclerp(q, t, q[::-1], t[::-1], 0.3)
-    q5, t5 = qa.sclerp(q, tf_t, q[::-1], tf_t[::-1], 0.3)
+    _q4, t4 = qa.sclerp(q, t, q[::-1], t[::-1], 0.3)
+    _q5, t5 = qa.sclerp(q, tf_t, q[::-1], tf_t[::-1], 0.3)
     np.testing.assert_allclose(t4 / scale, t5, rtol=1e-12, atol=1e-12)
 
 
@@ -345,7 +345,7 @@ def pose_pair(seed, n=8):
 @settings(max_examples=40, deadline=None)
 @given(SEEDS)
 def test_exp_of_log_is_the_pose(seed):
-    rng, q, t = pose_pair(seed)
+    _rng, q, t = pose_pair(seed)
     q2, t2 = qa.from_exp_coords(qa.as_exp_coords(q, t))
     same_rotation(q2, q, 1e-14)
     np.testing.assert_allclose(t2, t, atol=1e-13)
@@ -365,7 +365,7 @@ def test_sclerp_ends(seed):
 @settings(max_examples=40, deadline=None)
 @given(SEEDS, st.floats(-3, 3), st.floats(-3, 3))
 def test_powers_add(seed, a, b):
-    rng, q, t = pose_pair(seed)
+    _rng, q, t = pose_pair(seed)
     qa_, ta = qa.pose_power(q, t, a)
     qb, tb = qa.pose_power(q, t, b)
     lhs = matrix(*qa.pose_compose(qa_, ta, qb, tb))

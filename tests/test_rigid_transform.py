@@ -140,7 +140,7 @@ def test_mean(shape):
 
 
 def test_errors_have_scipy_types():
-    a, b = pair((4,))
+    pair((4,))
     calls = [
         lambda T: T.from_translation([1, 2]),
         lambda T: T.from_dual_quat(np.zeros(7)),
@@ -246,7 +246,7 @@ def test_zero_copy_access():
 
 
 def test_float32_is_kept():
-    a, b = pair((10,))
+    _a, b = pair((10,))
     m32 = b.as_matrix().astype(np.float32)
     a32 = QT.from_matrix(m32)
     assert a32.wxyz.dtype == a32.xyz.dtype == np.float32

@@ -67,7 +67,7 @@ class RigidTransform:
            [0., 0., 0., 0.]])
     """
 
-    __slots__ = ("_q", "_t", "_single")
+    __slots__ = ("_q", "_single", "_t")
 
     def __init__(self, matrix, normalize=True, copy=True):
         q, t = _rg.pose_from_matrix(self._matrix_arg(matrix), assume_valid=not normalize)
