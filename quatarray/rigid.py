@@ -93,7 +93,8 @@ def log_rotation(a):
     v = select(flip, (-a[1], -a[2], -a[3]), (a[1], a[2], a[3]))
     s = E.vnorm(v)
     h = half_arc(s, w)
-    f = select(s > like(s, 0.0), like(s, 2.0) * h / s, like(s, 2.0) / w)
+    pos = s > like(s, 0.0)
+    f = select(pos, like(s, 2.0) * h / select(pos, s, like(s, 1.0)), like(s, 2.0) / select(pos, like(s, 1.0), w))
     return E.vscale(v, f), h, w, s
 
 

@@ -29,6 +29,8 @@ MODULES = [
     "test_transforms.py",
     "test_align.py",
     "test_kinematics.py",
+    "test_rigid.py",
+    "test_rigid_transform.py",
 ]
 
 
