@@ -52,6 +52,15 @@ class RigidTransform:
 
     Switch by the import line: ``from quatarray import RigidTransform``.
 
+    Differences from scipy: float32 stays float32; the transforms are stored as
+    unit quaternions and translations, so ``RigidTransform(m, normalize=False)``
+    reads the rotation off `m` by Shepperd's method without projecting it (scipy
+    keeps such a matrix as given) and ``copy=False`` still makes new arrays (use
+    :meth:`from_components_wxyz` to wrap arrays); tuple indices follow numpy's
+    rules on the leading shape (scipy 1.17 reads ``tf[0, 1]`` as ``tf[[0, 1]]``);
+    ``tf ** n`` is exp(n·log T) to rounding (scipy's agrees with that within
+    about 1e-7).
+
     Examples
     --------
     >>> import numpy as np
