@@ -481,3 +481,25 @@ def test_quaternions_of_any_scale(scale):
         np.testing.assert_allclose(a[1], b[1], atol=1e-14)
     dq = qa.as_dual_quat(q, t) * scale
     np.testing.assert_allclose(matrix(*qa.from_dual_quat(dq)), matrix(q, t), atol=1e-14)
+
+
+def test_real_pose_streams_screw(data_dir, tmp_path):
+    """TUM and EuRoC ground truth resampled with --poses screw: the TUM poses are
+    sclerp of the keys around each new time; both streams come out unit and continuous."""
+    from quatarray.cli import main
+
+    for name, rate in (("tum_freiburg1_xyz_groundtruth.txt", 45), ("euroc_v102_groundtruth.csv", 70)):
+        dst = tmp_path / (name + ".csv")
+        assert main(["resample", str(data_dir / name), str(dst), "--rate", str(rate),
+                     "--poses", "screw", "--no-progress"]) == 0
+        out = np.genfromtxt(dst, delimiter=",", names=True)
+        assert len(out) > 100
+        q = np.column_stack([out["qw"], out["qx"], out["qy"], out["qz"]])
+        np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1, atol=1e-12)
+        assert np.max(qa.distance(q[1:], q[:-1])) < 0.2  # continuous: neighbours close in rotation
+        if name.startswith("tum"):
+            keys = np.loadtxt(data_dir / name)
+            kq = keys[:, [7, 4, 5, 6]]
+            qs, ts = qa.pose_spline(keys[:, 0], kq, keys[:, 1:4], out["t"], poses="screw")
+            np.testing.assert_allclose(np.column_stack([out["x"], out["y"], out["z"]]), ts, atol=1e-9)
+            same_rotation(q, qs, 1e-9)
