@@ -38,6 +38,12 @@ _MODULES = {
     "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],
     "classes.rotation": ["Rotation"],
+    "rigid": [
+        "pose_compose", "pose_inverse", "pose_apply", "pose_as_matrix", "pose_from_matrix",
+        "as_dual_quat", "from_dual_quat", "as_exp_coords", "from_exp_coords",
+        "sclerp", "pose_power", "pose_mean", "pose_spline",
+    ],
+    "classes.rigid_transform": ["RigidTransform"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}

@@ -395,6 +395,26 @@ TABLE = {
     "trajectory[ape]": _trajectory("ape"),
     "trajectory[rpe]": _trajectory("rpe"),
     "eval": _eval_verb,
+    # rigid transforms (poses)
+    "pose_compose": _f("pose_compose", lambda f, s: _each(f, s.p, s.v, s.q, s.rv)),
+    "pose_inverse": _f("pose_inverse", lambda f, s: _each(f, s.p, s.v)),
+    "pose_apply": _f("pose_apply", lambda f, s: (
+        _each(f, s.p, s.v, s.rv, out=True), _each(f, s.p, s.v, s.rv, inverse=True, out=True))),
+    "pose_as_matrix": _f("pose_as_matrix", lambda f, s: _each(f, s.p, s.v, out=True)),
+    "pose_from_matrix": lambda qa, s: qa.pose_from_matrix(qa.pose_as_matrix(s.p, s.v)),
+    "as_dual_quat": _f("as_dual_quat", lambda f, s: (
+        _each(f, s.p, s.v, out=True), f(s.p, s.v, scalar_first=False))),
+    "from_dual_quat": lambda qa, s: [
+        _each(qa.from_dual_quat, qa.as_dual_quat(s.p, s.v, scalar_first=sf), scalar_first=sf) for sf in (True, False)],
+    "as_exp_coords": _f("as_exp_coords", lambda f, s: _each(f, s.p, s.v, out=True)),
+    "from_exp_coords": lambda qa, s: _each(qa.from_exp_coords, qa.as_exp_coords(s.p, s.v)),
+    "sclerp": _f("sclerp", lambda f, s: (_each(f, s.p, s.v, s.q, s.rv, s.t), f(s.p, s.v, s.q, s.rv, 0.5))),
+    "pose_power": _f("pose_power", lambda f, s: (_each(f, s.p, s.v, s.t), f(s.p, s.v, 0.5))),
+    "pose_mean": _f("pose_mean", lambda f, s: (f(s.p, s.v), f(s.p, s.v, weights=s.s))),
+    "pose_spline": _f("pose_spline", lambda f, s: [
+        f(s.times, s.keys, s.v[: len(s.times)], s.new_sorted, method=m, poses=r)
+        for m, r in (("slerp", "split"), ("bezier", "split"), ("slerp", "screw"))]),
+    "RigidTransform": lambda qa, s: _rigid_transform(qa, s),
 }
 
 
@@ -403,6 +423,18 @@ TABLE = {
 FLOAT64_ONLY = {"Clip.world", "Clip.resample[bezier]", "Clip.resample[slerp]", "Clip.resample[nlerp]",
                 "Clip.resample[squad]", "Clip.resample[cubic]", "read_bvh, write_bvh", "trajectory[ape]",
                 "trajectory[rpe]", "eval"}
+
+
+def _rigid_transform(qa, s):
+    """Every method of ``RigidTransform`` that runs a kernel of its own (the class's
+    kernels give each quaternion scipy's sign: other specialisations than the functions')."""
+    T = qa.RigidTransform
+    a = T.from_matrix(qa.pose_as_matrix(s.p, s.v))
+    b = T.from_components_wxyz(s.rv, s.q, normalize=True)
+    a * b, a[0] * b, a.inv(), a**0.5, a.apply(s.rv), a.apply(s.rv, inverse=True), a[0].apply(s.rv)
+    T.from_dual_quat(a.as_dual_quat()), T.from_dual_quat(a.as_dual_quat(scalar_first=True), scalar_first=True)
+    T.from_exp_coords(a.as_exp_coords()), a.as_matrix(), a.mean(), a.mean(weights=s.s)
+    T.from_components(s.v, qa.Rotation.from_wxyz(s.p)), T.from_translation(s.v)
 
 
 def covered(name):

@@ -108,8 +108,13 @@ def prepare_resample(args):
 
 
 def cmd_resample(args):
+    screw = getattr(args, "poses", "linear") == "screw"
     if _is_bvh(args, args.IN) and os.path.splitext(args.OUT)[1].lower() == ".bvh":
+        if screw:
+            raise UsageError("--poses screw is for pose streams (a position column), not BVH clips")
         return _resample_clip(args)
+    if screw and args.scheduler:
+        raise UsageError("--poses screw is not available with --scheduler")
     if args.scheduler:
         if args.in_times:
             raise UsageError("--in-times is not available with --scheduler; give --in-rate HZ")
@@ -124,10 +129,13 @@ def cmd_resample(args):
     jobs.check_key_times(args.IN, reader.has_time, args.in_rate, args.in_times, err=sys.stderr)
     in_times = jobs.FileTimes(args.in_times, "auto", "increasing") if args.in_times and not reader.has_time else None
     check_output(args.OUT, [args.IN] + [f for f in (args.times, args.in_times) if f], args.force)
+    if screw and not reader.has_pos:
+        raise UsageError(f"--poses screw needs positions: {args.IN} has no position column")
     clean = Cleaner(reader, args.on_invalid, ordered=True)
     with open_writer(args.OUT, QUAT_FIELDS, time=True, pos=reader.has_pos) as w, \
             _progress(args, reader.rows, "resample") as bar:
-        jobs.resample_stream(reader, clean, newt, w, args.method, args.chunk, args.in_rate, in_times, bar)
+        jobs.resample_stream(reader, clean, newt, w, args.method, args.chunk, args.in_rate, in_times, bar,
+                             poses="screw" if screw else "linear")
     clean.report(sys.stderr)
     return 0
 
@@ -681,6 +689,10 @@ def build_parser():
     s.add_argument("--method", choices=METHODS, default="bezier",
                    help="interpolation (default bezier); cubic is scipy's RotationSpline (C², one system over all "
                         "keys: the keys are held in memory, 40-64 bytes each; not with --scheduler)")
+    s.add_argument("--poses", choices=("linear", "screw"), default="linear",
+                   help="with a position column: linear positions between the two keys around each new time, "
+                        "rotations by --method (default), or screw: rotation and position together by "
+                        "screw linear interpolation (ScLERP) between those keys")
     k = s.add_mutually_exclusive_group()
     k.add_argument("--in-rate", type=_positive, metavar="HZ",
                    help="sampling rate of an input without a time column (row i is at i/HZ s)")

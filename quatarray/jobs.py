@@ -287,7 +287,7 @@ def check_key_times(name, has_time, in_rate=None, in_times=None, err=None, in_ti
 # resample: the in-process driver
 
 
-def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_times=None, bar=None):
+def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_times=None, bar=None, poses="linear"):
     """Resample `reader`'s key chunks (checked by `clean`, ordered) at the new times
     `newt` (:func:`new_times`) into the writer `w`, at most `chunk` new times at a time.
 
@@ -296,11 +296,15 @@ def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_time
     Memory stays bounded by `chunk` whatever the stream's length, except for the
     methods of :data:`GLOBAL_METHODS` (``"cubic"``), whose curve between two keys
     depends on every key: their keys are all held (:func:`_resample_global`).
+    Positions, where the reader has them, are interpolated linearly between the two
+    keys around each new time (``poses="linear"``, the rotations by `method`), or
+    rotation and position together by screw linear interpolation between those keys
+    (``poses="screw"``, :func:`quatarray.sclerp`; `method` is not used).
     """
     from .interpolation import unflip
     from .splines import spline
 
-    if method in GLOBAL_METHODS:
+    if method in GLOBAL_METHODS and poses != "screw":  # the screw rule does not use `method`
         return _resample_global(reader, clean, newt, w, method, chunk, in_rate, in_times, bar)
 
     def emit(keys, lo, hi, closed):
@@ -312,6 +316,15 @@ def resample_stream(reader, clean, newt, w, method, chunk, in_rate=None, in_time
             a = max(int(np.searchsorted(keys.t, nt[0], side="right")) - 3, 0)
             b = min(int(np.searchsorted(keys.t, nt[-1], side="left")) + 3, len(keys))
             near = keys.slice(a, b)
+            if poses == "screw" and near.pos is not None:
+                from .rigid import pose_spline
+
+                try:
+                    q, pos = pose_spline(near.t, near.data, near.pos, nt, poses="screw")
+                except ValueError as exc:
+                    raise library_error(reader.name, exc) from None
+                w.write(q, nt, pos)
+                continue
             try:
                 q = spline(near.t, near.data, nt, method=method)
             except ValueError as exc:

@@ -32,6 +32,8 @@ MODULES = [
     "test_davenport.py",
     "test_symmetry.py",
     "test_classes_rotation.py",
+    "test_rigid.py",
+    "test_rigid_transform.py",
 ]
 
 
