@@ -36,6 +36,7 @@ _MODULES = {
     "align": ["align_vectors", "rotation_between"],
     "kinematics": ["integrate_angular_velocity"],
     "classes.rotation": ["Rotation"],
+    "classes.spline": ["Slerp", "RotationSpline", "BezierSpline"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}
