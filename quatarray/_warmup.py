@@ -173,6 +173,18 @@ def _spline(method, new, order=0):
     return run
 
 
+def _spline_class(name, orders=(0,)):
+    """A spline class of quatarray (``Slerp``, ``RotationSpline``, ``BezierSpline``) built
+    on the sample keys and called on sorted and unsorted new times, in each `order`."""
+    def run(qa, s):
+        spl = getattr(qa, name)(s.times, qa.Rotation.from_wxyz(s.keys))
+        for new in (s.new_sorted, s.new_unsorted):
+            for order in orders:
+                spl(new, order) if order else spl(new)
+
+    return run
+
+
 def _f(name, call):
     """A table entry calling the public function `name` as ``call(f, s)``."""
     return lambda qa, s: call(getattr(qa, name), s)
@@ -260,6 +272,10 @@ TABLE = {
     # the rate loops serve sorted and unsorted new times alike
     **{f"spline[{m}, order={o}]": _spline(m, "new_unsorted", o)
        for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
+    # the spline classes (their kernels are the spline's: these compile what their calls add)
+    "Slerp": _spline_class("Slerp"),
+    "RotationSpline": _spline_class("RotationSpline", (0, 1, 2)),
+    "BezierSpline": _spline_class("BezierSpline", (0, 1, 2)),
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
     "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
         f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),

@@ -146,11 +146,11 @@ class Slerp:
 
     Examples
     --------
-    >>> import numpy as np
+    >>> import numpy as np, quatarray as qa
     >>> from quatarray import Rotation, Slerp
-    >>> keys = Rotation.from_rotvec([[0, 0, 0], [0, 0, np.pi / 2], [np.pi / 2, 0, 0]])
+    >>> keys = Rotation.from_wxyz(qa.from_rotvec([[0, 0, 0], [0, 0, np.pi / 2], [np.pi / 2, 0, 0]]))
     >>> slerp = Slerp([0, 1, 3], keys)
-    >>> np.round(np.degrees(slerp([0.5, 1.0]).as_rotvec()), 9) + 0.0
+    >>> np.round(np.degrees(qa.as_rotvec(slerp([0.5, 1.0]).wxyz)), 9) + 0.0
     array([[ 0.,  0., 45.],
            [ 0.,  0., 90.]])
     >>> slerp(2.0).single
@@ -249,11 +249,11 @@ class RotationSpline:
 
     Examples
     --------
-    >>> import numpy as np
+    >>> import numpy as np, quatarray as qa
     >>> from quatarray import Rotation, RotationSpline
-    >>> keys = Rotation.from_rotvec([[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0]])
+    >>> keys = Rotation.from_wxyz(qa.from_rotvec([[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0]]))
     >>> spline = RotationSpline([0, 1, 2], keys)
-    >>> np.round(spline([0.5, 1.5]).as_rotvec(), 12) + 0.0
+    >>> np.round(qa.as_rotvec(spline([0.5, 1.5]).wxyz), 12) + 0.0
     array([[0.  , 0.  , 0.25],
            [0.  , 0.  , 0.75]])
     >>> np.round(spline(1.0, order=1), 12) + 0.0  # rad per time unit, body frame
@@ -354,11 +354,11 @@ class BezierSpline:
 
     Examples
     --------
-    >>> import numpy as np
+    >>> import numpy as np, quatarray as qa
     >>> from quatarray import BezierSpline, Rotation
-    >>> keys = Rotation.from_rotvec([[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0]])
+    >>> keys = Rotation.from_wxyz(qa.from_rotvec([[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0]]))
     >>> spline = BezierSpline([0, 1, 2], keys)
-    >>> np.round(spline([0.5, 1.5]).as_rotvec(), 12) + 0.0
+    >>> np.round(qa.as_rotvec(spline([0.5, 1.5]).wxyz), 12) + 0.0
     array([[0.  , 0.  , 0.25],
            [0.  , 0.  , 0.75]])
     >>> np.round(spline([0.25, 1.0], order=1), 12) + 0.0  # rad per time unit, body frame
