@@ -23,6 +23,7 @@ import numpy as np
 
 from .. import _cubic
 from .. import splines as _sp
+from .._jit import kernel
 from .._validate import as_float, as_times, check_core, key_times, spline_order
 from .rotation import Rotation
 
@@ -61,20 +62,32 @@ def _scipy_steps(q):
     Canonical as scipy's ``as_rotvec`` takes it: w > 0, or w = 0 (a half turn) and the
     first non-zero of (x, y, z) positive. Keys exactly a half turn apart (identity,
     180° about x, identity) so turn on the same way round, as in scipy; nan rows keep
-    their sign. Numpy, vectorised: nothing to compile."""
-    p, b = q[:-1], q[1:]
-    w = np.einsum("ij,ij->i", p, b)
-    v = p[:, :1] * b[:, 1:] - b[:, :1] * p[:, 1:] - np.cross(p[:, 1:], b[:, 1:])
-    nz = v != 0.0
-    first = np.take_along_axis(v, np.argmax(nz, axis=1)[:, None], axis=1)[:, 0]  # 0 when all are
-    flip = (w < 0.0) | ((w == 0.0) & (first < 0.0))
-    sign = np.where(flip, -1.0, 1.0)
-    w = w * sign
-    v = v * sign[:, None]
-    un = np.sqrt(np.einsum("ij,ij->i", v, v))
-    angle = 2.0 * np.arctan2(un, w)  # in [0, π]: never an arccos
-    scale = np.where(un > 0.0, angle / np.where(un > 0.0, un, 1.0), 2.0)
-    return sign, v * scale[:, None]
+    their sign."""
+    sign = np.empty(q.shape[0] - 1)
+    r = np.empty((q.shape[0] - 1, 3))
+    _steps(q, sign, r)
+    return sign, r
+
+
+@kernel
+def _steps(q, sign, r):
+    """:func:`_scipy_steps` into `sign` and `r` (one pass: a handful of numpy calls per
+    step array cost more than scipy's whole construction at a few keys)."""
+    for n in range(q.shape[0] - 1):
+        p0, p1, p2, p3 = q[n, 0], q[n, 1], q[n, 2], q[n, 3]
+        b0, b1, b2, b3 = q[n + 1, 0], q[n + 1, 1], q[n + 1, 2], q[n + 1, 3]
+        w = p0 * b0 + p1 * b1 + p2 * b2 + p3 * b3  # q_n* ⊗ q_{n+1}
+        x = p0 * b1 - b0 * p1 - (p2 * b3 - p3 * b2)
+        y = p0 * b2 - b0 * p2 - (p3 * b1 - p1 * b3)
+        z = p0 * b3 - b0 * p3 - (p1 * b2 - p2 * b1)
+        first = x if x != 0.0 else (y if y != 0.0 else z)
+        s = -1.0 if w < 0.0 or (w == 0.0 and first < 0.0) else 1.0
+        un = np.sqrt(x * x + y * y + z * z)
+        f = s * 2.0 * np.arctan2(un, s * w) / un if un > 0.0 else 2.0 * s  # atan2: never an arccos
+        sign[n] = s
+        r[n, 0] = x * f
+        r[n, 1] = y * f
+        r[n, 2] = z * f
 
 
 def _increasing(times, message):
