@@ -27,6 +27,8 @@ _MODULES = {
         "as_su2", "from_su2", "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
     ],
     "euler": ["as_euler", "from_euler"],
+    "davenport": ["as_davenport", "from_davenport"],
+    "symmetry": ["create_group", "reduce"],
     "interpolation": [
         "lerp", "nlerp", "slerp", "double", "bisect", "bezier_controls", "bezier",
         "squad", "unflip", "angular_velocity",

@@ -473,6 +473,19 @@ def mean(q, weights=None, axis=None):
     >>> qa.mean(qa.random((3, 5), rng=0), axis=1).shape
     (3, 4)
     """
+    acc, out_lead, dtype = mean_sums(q, weights, axis)
+    zero = ~acc.any(axis=(1, 2))
+    acc[zero] = np.diag([1.0, 0.0, 0.0, 0.0])  # all weights zero: scipy's answer, the identity
+    vecs = np.linalg.eigh(acc)[1][..., -1]
+    return canonical(vecs.astype(dtype)).reshape(out_lead + Q)
+
+
+def mean_sums(q, weights=None, axis=None):
+    """The checked inputs of :func:`mean` summed: ``(acc, lead, dtype)`` with
+    ``acc`` ``(G, 4, 4)`` float64 the sums Σ wᵢ qᵢqᵢᵀ/|qᵢ|² of the G groups (in
+    (w, x, y, z) order; all zero where the weights are), ``lead`` the result's
+    leading shape and ``dtype`` that of `q` (for ``Rotation.mean``, which takes
+    the eigenvector itself)."""
     a = check_core(as_float(q, "q"), "q", Q)
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
@@ -509,10 +522,7 @@ def mean(q, weights=None, axis=None):
         qq = np.moveaxis(a, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else a
         ww = np.moveaxis(w, keep, range(len(keep)))[np.unravel_index(g, out_lead)] if keep else w
         raise _mean_bad_row(qq.reshape(-1, 4), ww.reshape(-1), qq.shape[:-1])
-    zero = ~acc.any(axis=(1, 2))
-    acc[zero] = np.diag([1.0, 0.0, 0.0, 0.0])  # all weights zero: scipy's answer, the identity
-    vecs = np.linalg.eigh(acc)[1][..., -1]
-    return canonical(vecs.astype(a.dtype)).reshape(out_lead + Q)
+    return acc, out_lead, a.dtype
 
 
 def _mean_bad_row(flat, w, lead):
