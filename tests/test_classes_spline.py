@@ -415,3 +415,15 @@ def test_bezier_spline_cubic_is_rotation_spline_on_continuous_keys(rng):
         if order == 0:
             got, want = got.wxyz, want.wxyz
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()))
+
+
+@pytest.mark.parametrize("cls", [Slerp, RotationSpline, BezierSpline])
+def test_pickle_and_copy(rng, cls):
+    import copy
+    import pickle
+
+    keys, times = keys_and_times(rng, 5)
+    spl = cls(times, Rotation.from_wxyz(keys))
+    new = samples(rng, times)
+    for other in (pickle.loads(pickle.dumps(spl)), copy.deepcopy(spl), copy.copy(spl)):
+        assert np.array_equal(other(new).wxyz, spl(new).wxyz)
