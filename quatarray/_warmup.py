@@ -173,7 +173,7 @@ def _spline(method, new, order=0):
     return run
 
 
-def _spline_class(name, orders=(0,)):
+def _spline_class(name, orders=(0,)):  # one order an entry: each a first call of its own
     """A spline class of quatarray (``Slerp``, ``RotationSpline``, ``BezierSpline``) built
     on the sample keys and called on sorted and unsorted new times, in each `order`."""
     def run(qa, s):
@@ -274,8 +274,8 @@ TABLE = {
        for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
     # the spline classes (their kernels are the spline's: these compile what their calls add)
     "Slerp": _spline_class("Slerp"),
-    "RotationSpline": _spline_class("RotationSpline", (0, 1, 2)),
-    "BezierSpline": _spline_class("BezierSpline", (0, 1, 2)),
+    **{f"{c}{'' if o == 0 else f'[order={o}]'}": _spline_class(c, (o,))
+       for c in ("RotationSpline", "BezierSpline") for o in (0, 1, 2)},
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
     "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
         f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),
