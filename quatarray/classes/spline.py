@@ -3,11 +3,11 @@
 :class:`Slerp` and :class:`RotationSpline` have scipy's public API and rules
 (the checks, their exception types and messages, extrapolation refused by
 ``Slerp`` and done by ``RotationSpline``, scalar or 1-D times) and give
-scipy's quaternions, signs included, within 1e-10. Both evaluate with the
-compiled loop of ``quatarray.spline(method="cubic")``: a segment's value is
-q_n ⊗ Exp(ρ(τ)) with ρ a polynomial in τ, which for ``Slerp`` is scipy's
-straight line ρ = α r_n (see :func:`_slerp_plan`), and each construction
-keeps what its calls reuse (the coefficients, the keys).
+scipy's quaternions, signs included, within 1e-10. They evaluate with the
+compiled loops of ``quatarray.spline(method="slerp")`` (on a segment table of
+scipy's arcs, see :func:`_slerp_plan`) and ``quatarray.spline(method="cubic")``
+(q_n ⊗ Exp(ρ(τ)), ρ a cubic in τ: scipy's own curve), and each construction
+keeps what its calls reuse (the table; the coefficients and the keys).
 
 :class:`BezierSpline` is quatarray's own: ``quatarray.spline`` with any of
 its methods (Shoemake's Bézier spline by default) behind ``RotationSpline``'s
@@ -188,10 +188,11 @@ class Slerp:
             raise ValueError(
                 "Expected number of rotations to be equal to number of timestamps given, "
                 f"got {q.shape[0]} rotations and {times.shape[0]} timestamps.")
-        dt = _increasing(times, "Times must be in strictly increasing order.")
+        _increasing(times, "Times must be in strictly increasing order.")
         self.times = times
         self.rotations = rotations
-        self._plan = _slerp_plan(times, dt, q)
+        self._dtype = _house_dtype(q)
+        self._rev_times, self._seg = _slerp_plan(times, q)
 
     def __call__(self, times):
         """Interpolate rotations at `times` (a scalar or 1-D, within the keys' times).
@@ -205,29 +206,36 @@ class Slerp:
         t0, t1 = self.times[0], self.times[-1]
         if nt.size and not (nt.min() >= t0 and nt.max() <= t1):  # nan fails too
             raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
-        rev_times, keys, coef, dtype = self._plan
-        return _as_rotation(_eval_cubic(0, rev_times, np.negative(nt), keys, coef, dtype), single)
+        out = np.empty((nt.shape[0], 4), self._dtype)
+        if nt.shape[0]:
+            _sp._EVALS["slerp"](self._rev_times, np.negative(nt), self._seg, out.reshape(-1))
+        return _as_rotation(out, single)
 
 
-def _slerp_plan(times, dt, q):
-    """What every call of a :class:`Slerp` reuses: scipy's segment n,
-    ``R[n] * Rotation.from_rotvec(α r_n)`` with α = (t − t_n)/h_n in (0, 1] (t_0 in
-    segment 0), as the cubic spline's loop evaluates it from the segment's end,
-    on the reversed time axis: keys' times −t_{K−1} < … < −t_0, new times −t, and
-    reversed segment j (n = K − 2 − j) the end key σ_n q_{n+1} = q_n ⊗ Exp(r_n)
-    (exactly, from scipy's canonical step: :func:`_scipy_steps`) times Exp(ρ)
-    with ρ = −r_n (t_{n+1} − t)/h_n. The loop's segments include their start, and
-    the last one its end: on the reversed axis that is scipy's rule, each
-    segment with its end time and the first one with t_0 too, so that at a key
-    time t_{n+1} the result is the end of segment n, σ_n q_{n+1}, as in scipy."""
+def _slerp_plan(times, q):
+    """What every call of a :class:`Slerp` reuses: (reversed key times, segment table).
+
+    scipy's segment n is ``R[n] * Rotation.from_rotvec(α r_n)``, α = (t − t_n)/h_n in
+    (0, 1] (and t_0 in segment 0): the great arc from q_n to σ_n q_{n+1} = q_n ⊗ Exp(r_n)
+    (exactly, with scipy's canonical step: :func:`_scipy_steps`), whose quaternion at
+    a key time t_{n+1} is the end of segment n, σ_n q_{n+1}, not the key as given.
+    The evaluation loop of ``spline(method="slerp")`` puts a time in the segment it
+    starts (the last one takes its end too), so it runs on the reversed time axis:
+    key times −t_{K−1} < … < −t_0, new times −t, reversed segment j (n = K − 2 − j)
+    the arc from σ_n q_{n+1} back to q_n. A table row depends on its two ends only,
+    and consecutive segments need not share a key (σ_n = −1 breaks the chain): the
+    ends go in pairs, rows (start, end) of every segment, and the table keeps the
+    rows of the pairs."""
     dtype = _house_dtype(q)
     q64 = _unit64(q)
-    sign, r = _scipy_steps(q64)
-    ends = (q64[1:] * sign[:, None])[::-1]
-    coef = np.zeros((len(dt), _cubic.NCOEF))
-    coef[:, 6:9] = (-r / dt[:, None])[::-1]
-    rev_times = np.ascontiguousarray(-times[::-1])
-    return (rev_times, np.ascontiguousarray(ends, dtype).reshape(-1), coef.astype(dtype).reshape(-1), dtype)
+    sign, _ = _scipy_steps(q64)
+    k = q64.shape[0]
+    pairs = np.empty((2 * (k - 1), 4), dtype)
+    pairs[0::2] = (q64[1:] * sign[:, None])[::-1]
+    pairs[1::2] = q64[:-1][::-1]
+    seg = np.empty((2 * k - 3, _sp.NSEG), dtype)
+    _sp._SEGMENTS["slerp"](pairs, pairs, pairs, seg)
+    return np.ascontiguousarray(-times[::-1]), np.ascontiguousarray(seg[0::2]).reshape(-1)
 
 
 # ---- RotationSpline
