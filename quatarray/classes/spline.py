@@ -16,7 +16,7 @@ call interface, its controls and segment table built once.
 The keys' step r_n = Log(q_n* ⊗ q_{n+1}) is scipy's: the relative rotation
 made canonical (w > 0; a half turn, w = 0, takes the sign that makes its
 first non-zero component of (x, y, z) positive), so that keys exactly half a
-turn apart turn the way scipy turns (:func:`_scipy_steps`).
+turn apart turn the way scipy turns (:func:`_scipy_signs`).
 """
 
 import numpy as np
@@ -54,25 +54,22 @@ def _unit64(q):
     return q
 
 
-def _scipy_steps(q):
-    """(sign, r) of the unit float64 keys q (K, 4): r (K − 1, 3) the rotation vectors
-    ``(R[n].inv() * R[n + 1]).as_rotvec()`` as scipy forms them, and sign (K − 1,) = ±1
-    with σ_n q_n* ⊗ q_{n+1} the canonical relative rotation whose Log r_n is.
-
-    Canonical as scipy's ``as_rotvec`` takes it: w > 0, or w = 0 (a half turn) and the
-    first non-zero of (x, y, z) positive. Keys exactly a half turn apart (identity,
-    180° about x, identity) so turn on the same way round, as in scipy; nan rows keep
-    their sign."""
+def _scipy_signs(q):
+    """σ (K − 1,) = ±1 of the unit float64 keys q (K, 4): σ_n q_n* ⊗ q_{n+1} is the
+    relative rotation ``R[n].inv() * R[n + 1]`` made canonical, as scipy's ``as_rotvec``
+    takes it before its Log r_n (scipy's step from key n to key n + 1): w > 0, or w = 0
+    (a half turn) and the first non-zero of (x, y, z) positive. Keys exactly a half
+    turn apart (identity, 180° about x, identity) so turn on the same way round, as in
+    scipy; a nan row keeps its sign."""
     sign = np.empty(q.shape[0] - 1)
-    r = np.empty((q.shape[0] - 1, 3))
-    _steps(q, sign, r)
-    return sign, r
+    _signs(q, sign)
+    return sign
 
 
 @kernel
-def _steps(q, sign, r):
-    """:func:`_scipy_steps` into `sign` and `r` (one pass: a handful of numpy calls per
-    step array cost more than scipy's whole construction at a few keys)."""
+def _signs(q, sign):
+    """:func:`_scipy_signs` into `sign` (one pass: the dozen numpy calls it takes on
+    arrays of steps cost more than scipy's whole construction at a few keys)."""
     for n in range(q.shape[0] - 1):
         p0, p1, p2, p3 = q[n, 0], q[n, 1], q[n, 2], q[n, 3]
         b0, b1, b2, b3 = q[n + 1, 0], q[n + 1, 1], q[n + 1, 2], q[n + 1, 3]
@@ -81,13 +78,7 @@ def _steps(q, sign, r):
         y = p0 * b2 - b0 * p2 - (p3 * b1 - p1 * b3)
         z = p0 * b3 - b0 * p3 - (p1 * b2 - p2 * b1)
         first = x if x != 0.0 else (y if y != 0.0 else z)
-        s = -1.0 if w < 0.0 or (w == 0.0 and first < 0.0) else 1.0
-        un = np.sqrt(x * x + y * y + z * z)
-        f = s * 2.0 * np.arctan2(un, s * w) / un if un > 0.0 else 2.0 * s  # atan2: never an arccos
-        sign[n] = s
-        r[n, 0] = x * f
-        r[n, 1] = y * f
-        r[n, 2] = z * f
+        sign[n] = -1.0 if w < 0.0 or (w == 0.0 and first < 0.0) else 1.0
 
 
 def _increasing(times, message):
@@ -217,7 +208,7 @@ def _slerp_plan(times, q):
 
     scipy's segment n is ``R[n] * Rotation.from_rotvec(α r_n)``, α = (t − t_n)/h_n in
     (0, 1] (and t_0 in segment 0): the great arc from q_n to σ_n q_{n+1} = q_n ⊗ Exp(r_n)
-    (exactly, with scipy's canonical step: :func:`_scipy_steps`), whose quaternion at
+    (exactly, with scipy's canonical step: :func:`_scipy_signs`), whose quaternion at
     a key time t_{n+1} is the end of segment n, σ_n q_{n+1}, not the key as given.
     The evaluation loop of ``spline(method="slerp")`` puts a time in the segment it
     starts (the last one takes its end too), so it runs on the reversed time axis:
@@ -228,7 +219,7 @@ def _slerp_plan(times, q):
     rows of the pairs."""
     dtype = _house_dtype(q)
     q64 = _unit64(q)
-    sign, _ = _scipy_steps(q64)
+    sign = _scipy_signs(q64)
     k = q64.shape[0]
     pairs = np.empty((2 * (k - 1), 4), dtype)
     pairs[0::2] = (q64[1:] * sign[:, None])[::-1]
@@ -303,7 +294,7 @@ class RotationSpline:
         self.rotations = rotations
         self._dtype = _house_dtype(q)
         q64 = _unit64(q)
-        sign, _ = _scipy_steps(q64)
+        sign = _scipy_signs(q64)
         # the keys signed so that each step is scipy's canonical one (the tie rule),
         # for the coefficients; the evaluation starts each segment from the key as given
         chain = np.concatenate([[1.0], np.cumprod(sign)])
