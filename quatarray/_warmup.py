@@ -185,6 +185,19 @@ def _spline_class(name, orders=(0,)):  # one order an entry: each a first call o
     return run
 
 
+def _rotation_class(R, s):
+    """Every method of ``quatarray.Rotation`` on a stack and a single rotation."""
+    xyzw = s.p[:, [1, 2, 3, 0]]
+    for r, v in ((R.from_quat(xyzw), s.v), (R.from_quat(xyzw[0]), s.v[0])):
+        r.as_quat(), r.as_quat(True, scalar_first=True), r.as_matrix(), r.as_rotvec(), r.as_mrp()
+        r.as_euler("xyz", suppress_warnings=True), r.magnitude(), r.inv(), r * r, r ** 0.5
+        r.apply(v), r.apply(v, inverse=True), r.approx_equal(r), r.mean()
+    R.from_quat(xyzw, scalar_first=True), R.from_rotvec(s.rv), R.from_rotvec(s.rv[0]), R.from_mrp(s.rv)
+    R.from_mrp(s.rv[0]), R.from_euler("xyz", s.eul), R.from_euler("xyz", s.eul[0]), R.from_matrix(s.m)
+    R.from_matrix(s.m[0])
+    R.from_quat(xyzw).apply(s.v[0]), R.from_quat(xyzw[0]).apply(s.v)
+
+
 def _f(name, call):
     """A table entry calling the public function `name` as ``call(f, s)``."""
     return lambda qa, s: call(getattr(qa, name), s)
@@ -279,6 +292,15 @@ TABLE = {
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
     "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
         f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),
+    # Davenport angles, symmetry groups
+    "from_davenport": _f("from_davenport", lambda f, s: [
+        f(np.eye(3, dtype=s.dtype)[[2, 0, 2]], o, s.eul) for o in ("e", "i")]),
+    "as_davenport": _f("as_davenport", lambda f, s: [
+        f(s.p, np.eye(3, dtype=s.dtype)[[2, 0, 1]], o, suppress_warnings=True) for o in ("e", "i")]),
+    "create_group": _f("create_group", lambda f, s: f("O", dtype=s.dtype)),
+    "reduce": _f("reduce", lambda f, s: (f(s.p, s.q[:3], s.q[3:]), f(s.p, s.q))),
+    # the scipy-compatible class (its own kernels and its one-row paths)
+    "Rotation": lambda qa, s: _rotation_class(qa.Rotation, s),
     # transforms
     "VQS": lambda qa, s: _transform(_vqs(qa, s), _vqm(qa, s), s),
     "VQM": lambda qa, s: _transform(_vqm(qa, s), _vqs(qa, s), s),

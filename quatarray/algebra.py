@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, like, prange, rowloop
+from ._jit import RowLoop, inline, kernel, like, min_rows, prange, rowloop, specialise
 from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
@@ -178,21 +178,70 @@ def _cumprod(q, out):
             out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = acc
 
 
-@kernel
-def _outer_sum(q, w, acc):
-    # For each group g: acc[g] (4, 4) float64 += w_i q_i q_iᵀ / |q_i|² over the rows
-    # i of q[g] (G, M, 4), w (G, M), accumulated in float64; each q_i is first divided
-    # by its largest |component| (no overflow or underflow in the squares, whatever
-    # its scale; a zero, inf or nan row makes acc[g] nan).
+MEAN_BLOCK = 16384  # rows per partial sum of _outer_sum (blocks run in parallel)
+
+
+UNIT = False  # rebound to True in _outer_sum_unit
+
+
+def _outer_sum_rows(q, w, part):
+    # For each group g and block b of its rows: part[g, b] (10,) float64 the sums
+    # Σ w_i q_i q_iᵀ / |q_i|² (its 10 distinct entries, in the order of _PAIRS) over
+    # the rows i of q[g] (G, M, 4), w (G, M) in that block, accumulated in float64.
+    # A row far from unit scale (or zero, inf, nan) is first divided by its largest
+    # |component| (no overflow or underflow in the squares; zero, inf and nan rows
+    # make the sums nan). Ten scalar accumulators per block stay in registers.
+    # UNIT (the copy _outer_sum_unit, for Rotation.mean, whose quaternions are unit
+    # as scipy's are): Σ w_i q_i q_iᵀ, without the division (a third of the time).
+    m = q.shape[1]
+    nb = part.shape[1]
     for g in range(q.shape[0]):
-        for i in range(q.shape[1]):
-            a = (np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3]))
-            m = max(max(abs(a[0]), abs(a[1])), max(abs(a[2]), abs(a[3])))
-            a = (a[0] / m, a[1] / m, a[2] / m, a[3] / m)
-            s = np.float64(w[g, i]) / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-            for r in range(4):
-                for c in range(4):
-                    acc[g, r, c] += s * a[r] * a[c]
+        for b in prange(nb):
+            s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = 0.0
+            for i in range(b * MEAN_BLOCK, min(m, (b + 1) * MEAN_BLOCK)):
+                a0, a1, a2, a3 = np.float64(q[g, i, 0]), np.float64(q[g, i, 1]), np.float64(q[g, i, 2]), np.float64(q[g, i, 3])
+                if UNIT:
+                    k = np.float64(w[g, i])
+                else:
+                    n2 = a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3
+                    if E.far_scale(n2):
+                        mx = max(max(abs(a0), abs(a1)), max(abs(a2), abs(a3)))
+                        a0, a1, a2, a3 = a0 / mx, a1 / mx, a2 / mx, a3 / mx
+                        n2 = a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3
+                    k = np.float64(w[g, i]) / n2
+                s0 += k * a0 * a0
+                s1 += k * a0 * a1
+                s2 += k * a0 * a2
+                s3 += k * a0 * a3
+                s4 += k * a1 * a1
+                s5 += k * a1 * a2
+                s6 += k * a1 * a3
+                s7 += k * a2 * a2
+                s8 += k * a2 * a3
+                s9 += k * a3 * a3
+            p = part[g, b]
+            p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9] = s0, s1, s2, s3, s4, s5, s6, s7, s8, s9
+
+
+# serial and parallel dispatchers (the parallel one compiles only for a large sum)
+_outer_sum = RowLoop(_outer_sum_rows)
+_outer_sum_unit = RowLoop(specialise(_outer_sum_rows, "_unit", UNIT=True))
+
+_PAIRS = [(0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3)]
+
+
+def _outer_sums(qg, wg, unit=False):
+    """``(G, 4, 4)`` float64: the symmetric sums of :func:`_outer_sum` for each group."""
+    groups, count = qg.shape[:2]
+    part = np.zeros((groups, max(1, -(-count // MEAN_BLOCK)), 10))
+    if count:
+        loop = _outer_sum_unit if unit else _outer_sum
+        (loop.parallel if groups * count >= min_rows() else loop.serial)(qg, wg, part)
+    s = part.sum(axis=1)
+    acc = np.empty((groups, 4, 4))
+    for k, (r, c) in enumerate(_PAIRS):
+        acc[:, r, c] = acc[:, c, r] = s[:, k]
+    return acc
 
 
 # --------------------------------------------------------------------------
@@ -480,12 +529,12 @@ def mean(q, weights=None, axis=None):
     return canonical(vecs.astype(dtype)).reshape(out_lead + Q)
 
 
-def mean_sums(q, weights=None, axis=None):
+def mean_sums(q, weights=None, axis=None, unit=False):
     """The checked inputs of :func:`mean` summed: ``(acc, lead, dtype)`` with
     ``acc`` ``(G, 4, 4)`` float64 the sums Σ wᵢ qᵢqᵢᵀ/|qᵢ|² of the G groups (in
     (w, x, y, z) order; all zero where the weights are), ``lead`` the result's
     leading shape and ``dtype`` that of `q` (for ``Rotation.mean``, which takes
-    the eigenvector itself)."""
+    the eigenvector itself). `unit`: the quaternions are unit (Σ wᵢ qᵢqᵢᵀ, faster)."""
     a = check_core(as_float(q, "q"), "q", Q)
     if a.ndim == 1 and (axis is not None or np.ndim(weights) > 0):
         a = a[None]  # one quaternion has one leading axis of length 1 for `axis` and weights, as in scipy
@@ -496,7 +545,7 @@ def mean_sums(q, weights=None, axis=None):
     if a.size == 0 or count == 0:
         raise ValueError("Expected `q` to hold at least one quaternion to average, got shape " f"{a.shape}.")
     if weights is None:
-        w = np.ones(lead)
+        w = np.broadcast_to(1.0, lead)
     else:
         w = as_float(weights, "weights", np.float64)
         try:
@@ -513,8 +562,7 @@ def mean_sums(q, weights=None, axis=None):
     groups = int(np.prod(out_lead))
     qg = np.transpose(a, order + (len(lead),)).reshape(groups, count, 4)
     wg = np.transpose(w, order).reshape(groups, count)
-    acc = np.zeros((groups, 4, 4))
-    _outer_sum(qg, wg, acc)
+    acc = _outer_sums(qg, wg, unit)
     finite = np.isfinite(acc).all(axis=(1, 2))
     if not finite.all():
         g = int(np.argmin(finite))

@@ -37,7 +37,11 @@ _Q = (4,)
 # composing scipy does, so that each is one pass over memory
 
 
-@rowloop
+# The layout kernels only stream memory: serial (a second thread gains nothing on
+# the shared memory bus, and measured slower on a loaded machine).
+
+
+@rowloop(parallel=False)
 def _quat_in(a, first, out):
     # (x, y, z, w) or (w, x, y, z) rows → unit (w, x, y, z); 1 when a row was far
     # from unit scale (or zero, inf, nan): the caller redoes those
@@ -52,7 +56,7 @@ def _quat_in(a, first, out):
     return far
 
 
-@rowloop
+@rowloop(parallel=False)
 def _quat_out(q, first, canonical, out):
     # (w, x, y, z) → (x, y, z, w) (or kept), with scipy's canonical sign if asked
     for i in prange(q.shape[0]):
@@ -118,7 +122,10 @@ def _floats(x, name):
     """`x` as a float32/float64 ndarray: the arrays the class holds pass as they are."""
     if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32):
         return x
-    return as_float(x, name)
+    try:
+        return as_float(x, name)
+    except TypeError as exc:  # scipy: a ValueError for values that are not real numbers
+        raise ValueError(str(exc)) from None
 
 
 def _shape_check(a, name, core, text):
@@ -748,7 +755,7 @@ class Rotation:
         q = self._q
         if q.ndim == 1:
             return Rotation._from_house(q * _CONJ[q.dtype], self._single)
-        return Rotation._from_house(_map(_alg._conjugate, q, _Q, _Q), False)
+        return Rotation._from_house(_map(_alg._conjugate.serial, q, _Q, _Q), False)  # streams memory: serial
 
     def magnitude(self):
         """The rotation angles in [0, π].
@@ -806,7 +813,7 @@ class Rotation:
         q = self._q if self._q.ndim > 1 else self._q[None]
         if axis is not None and not isinstance(axis, (int, np.integer, tuple)):
             raise ValueError("`axis` must be None, int, or tuple of ints.")
-        acc, lead, dtype = _alg.mean_sums(q, weights, axis)
+        acc, lead, dtype = _alg.mean_sums(q, weights, axis, unit=True)
         k = acc[:, _XYZW][:, :, _XYZW]  # scipy's order, so that eigh picks scipy's sign
         v = np.linalg.eigh(k)[1][..., -1]
         out = np.ascontiguousarray(v[:, _WXYZ], dtype=dtype).reshape(lead + _Q)
@@ -892,10 +899,13 @@ class Rotation:
         return cls._from_house(q, q.ndim == 1)
 
     @classmethod
-    def random(cls, num=None, rng=None, *, shape=None, random_state=None):
-        """Uniformly distributed rotations: the same draws as scipy's for the same
-        seed (``num`` with an integer seed draws from ``RandomState``, ``shape``
-        from ``default_rng``, as scipy 1.17 does).
+    def random(cls, num=None, *legacy, rng=None, shape=None, random_state=None):
+        """Uniformly distributed rotations, the same draws as scipy's for the same seed.
+
+        As scipy 1.17 (its transition from ``random_state`` to ``rng``): a seed
+        given by position, ``random(num, seed)``, or as ``random_state=`` seeds a
+        legacy ``RandomState``; ``rng=seed`` by keyword seeds ``default_rng``.
+        A ``Generator`` or ``RandomState`` is used as it is.
 
         Examples
         --------
@@ -903,19 +913,20 @@ class Rotation:
         >>> Rotation.random(3, rng=0).shape, Rotation.random(rng=0).single
         ((3,), True)
         """
-        if random_state is not None:
-            if rng is not None:
-                raise TypeError("Expected only one of `rng` and `random_state`.")
-            rng, legacy = random_state, True
-        else:
-            legacy = shape is None
+        if len(legacy) > 1:
+            raise TypeError(f"random() takes at most 2 positional arguments ({1 + len(legacy)} given)")
+        seeds = [x for x in (legacy[0] if legacy else None, random_state) if x is not None]
+        if len(seeds) + (rng is not None) > 1:
+            raise TypeError("Expected only one of `rng` and `random_state`.")
+        old = bool(legacy) or random_state is not None
+        seed = seeds[0] if seeds else rng
         lead = _lead_shape(num, shape)
-        if isinstance(rng, (np.random.Generator, np.random.RandomState)):
-            gen = rng
-        elif legacy:
-            gen = np.random.mtrand._rand if rng is None else np.random.RandomState(rng)
+        if isinstance(seed, (np.random.Generator, np.random.RandomState)):
+            gen = seed
+        elif old:
+            gen = np.random.mtrand._rand if seed is None else np.random.RandomState(seed)
         else:
-            gen = np.random.default_rng(rng)
+            gen = np.random.default_rng(seed)
         sample = gen.normal(size=lead + _Q)
         return cls._from_house(_house_in(sample, False, "quat"), sample.ndim == 1)
 
