@@ -13,7 +13,8 @@ same lines. Groups:
   evaluation in one call (≥ 10×), with quatarray's ``BezierSpline`` beside;
 - ``N=1 <call>``: ``Rotation.from_quat(q).apply(v)``, ``r1 * r2``,
   ``r.as_euler("xyz")``, ``r.inv()`` on one rotation: no slower than scipy,
-  and at most about 1 µs above the bare functional call (``quatarray-functional``).
+  and at most about 1 µs above the bare functional call (``quatarray-functional``);
+  likewise one new time on a 10-key ``Slerp`` and ``RotationSpline``.
 
 Run: ``python -m pytest benchmarks/test_classes.py --benchmark-only`` (the
 summary prints every ratio). ``test_side_by_side`` (also under
@@ -125,6 +126,21 @@ def spline_calls():
     return calls
 
 
+def small_spline_calls():
+    """One new time on a 10-key spline built beforehand (a control loop's call), and
+    the bare functional call (which validates and prepares the keys every time)."""
+    rng = np.random.default_rng(3)
+    times = np.arange(10.0)
+    xyzw = qa.as_xyzw(qa.random(10, rng))
+    wxyz = qa.from_xyzw(xyzw)
+    calls = {}
+    for cls, method in (("Slerp", "slerp"), ("RotationSpline", "cubic")):
+        calls[f"{cls}(...)(t)"] = {name: (lambda s=getattr(R, cls)(times, R.Rotation.from_quat(xyzw)): s(2.5))
+                                   for name, R in LIBS.items()}
+        calls[f"{cls}(...)(t)"]["quatarray-functional"] = lambda m=method: qa.spline(times, wxyz, 2.5, method=m)
+    return calls
+
+
 def _run(benchmark, fn, n):
     fn()  # compile, warm the memory
     benchmark.extra_info["items"] = n
@@ -175,6 +191,13 @@ def test_single(benchmark, call, lib):
     _run(benchmark, fn, 1)
 
 
+@pytest.mark.parametrize("lib", ["quatarray", "scipy", "quatarray-functional"])
+@pytest.mark.parametrize("cls", ["Slerp", "RotationSpline"])
+def test_single_spline(benchmark, cls, lib):
+    benchmark.group = f"N=1 {cls}(...)(t), 10 keys"
+    _run(benchmark, small_spline_calls()[f"{cls}(...)(t)"][lib], 1)
+
+
 # --------------------------------------------------------------------------
 # the same calls side by side, interleaved
 
@@ -222,6 +245,10 @@ def side_by_side(rounds=5, single_rounds=7, single_number=2000):
         rows.append((f"N=1 {call}", "quatarray", t["quatarray"], t["scipy"] / t["quatarray"]))
         rows.append((f"N=1 {call}", "quatarray-functional", t["quatarray-functional"],
                      t["scipy"] / t["quatarray-functional"]))
+    for call, fns in small_spline_calls().items():
+        t = best_of(fns, single_rounds, single_number)
+        for lib in ("quatarray", "quatarray-functional"):
+            rows.append((f"N=1 {call}, 10 keys", lib, t[lib], t["scipy"] / t[lib]))
     return rows
 
 
