@@ -9,8 +9,7 @@ from scipy.spatial.transform import RotationSpline as SRotationSpline
 from scipy.spatial.transform import Slerp as SSlerp
 
 import quatarray as qa
-from quatarray import BezierSpline, Rotation, RotationSpline, Slerp
-from quatarray import splines
+from quatarray import BezierSpline, Rotation, RotationSpline, Slerp, splines
 
 
 def keys_and_times(rng, k, flips=True, uneven=True):

@@ -435,7 +435,7 @@ class BezierSpline:
             body frame (as scipy's ``RotationSpline``).
         """
         order = spline_order(order)
-        t, nt = _sp.plan_times(self.times, as_times(times, "new_times"))
+        _, nt = _sp.plan_times(self.times, as_times(times, "new_times"))
         shape = nt.shape
         flat = np.ascontiguousarray(nt.reshape(-1))
         q = self._q
