@@ -38,8 +38,8 @@ def _order(order):
     if isinstance(order, str) and order in ("i", "intrinsic"):
         return False
     raise ValueError(
-        "Expected `order` to be 'e'/'extrinsic' for extrinsic sequences or "
-        f"'i'/'intrinsic' for intrinsic sequences, got {order!r}."
+        "Davenport order should be 'e'/'extrinsic' for extrinsic sequences or "
+        f"'i'/'intrinsic' for intrinsic sequences (argument `order`), got {order!r}."
     )
 
 
@@ -67,8 +67,8 @@ def _check_orthogonal(a, signed=False):
         bad = d >= 1e-7 if signed else np.abs(d) > 1e-7
         if np.any(bad):
             raise ValueError(
-                f"Expected consecutive axes to be orthogonal (dot product within 1e-7 of 0); "
-                f"axes {i} and {i + 1} have dot product {float(np.max(np.abs(d))):.6g}."
+                f"Consecutive axes must be orthogonal (a dot product within 1e-7 of 0); "
+                f"axes {i} and {i + 1} of `axes` have dot product {float(np.max(np.abs(d))):.6g}."
             )
 
 

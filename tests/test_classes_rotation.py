@@ -197,12 +197,14 @@ def test_euler_gimbal_lock(seq):
     with warnings.catch_warnings(record=True) as wt:
         warnings.simplefilter("always")
         want = s.as_euler(seq)
+    ws = [w for w in ws if issubclass(w.category, UserWarning)]
+    wt = [w for w in wt if issubclass(w.category, UserWarning)]
     assert bool(ws) == bool(wt)
     assert all("Gimbal lock" in str(w.message) for w in ws)
     close(R.from_euler(seq, got).as_matrix(), s.as_matrix(), 1e-9)
     close(got, want, 1e-6)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error", UserWarning)
         r.as_euler(seq, suppress_warnings=True)
         r[0].as_euler(seq, suppress_warnings=True)
 
@@ -544,7 +546,7 @@ def test_error_messages_name_the_problem():
         R.from_quat([0, 0, 0, 0])
     with pytest.raises(ValueError, match="Cannot broadcast 3 rotations to 2 vectors"):
         R.identity(3).apply(np.ones((2, 3)))
-    with pytest.raises(ValueError, match="determinant.*`matrix`|`matrix`.*determinant"):
+    with pytest.raises(ValueError, match="Non-positive determinant .* rotation matrix 0"):
         R.from_matrix(-np.eye(3))
     with pytest.raises(ValueError, match="orthogonal"):
         R.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3])

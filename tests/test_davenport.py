@@ -103,7 +103,7 @@ def test_gimbal_lock_warns_once_and_sets_third_angle_zero():
     assert np.allclose(np.angle(np.exp(1j * (got - want))), 0, atol=1e-12)
     assert np.all(qa.distance(qa.from_davenport(ax, "e", got), q) < 1e-7)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error", UserWarning)
         qa.as_davenport(q, ax, "e", suppress_warnings=True)
 
 

@@ -29,6 +29,9 @@ MODULES = [
     "test_transforms.py",
     "test_align.py",
     "test_kinematics.py",
+    "test_davenport.py",
+    "test_symmetry.py",
+    "test_classes_rotation.py",
 ]
 
 

@@ -134,6 +134,20 @@ def _shape_check(a, name, core, text):
     return a
 
 
+def _check_seq(seq, three):
+    """scipy's checks (and messages) of an Euler sequence that is not one of the valid
+    ones: 1 to 3 axes (exactly 3 when `three`), one case, no axis twice in a row."""
+    n = len(seq)  # TypeError for a non-sequence, as scipy
+    if three and n != 3:
+        raise ValueError(f"Expected 3 axes, got {seq}.")
+    if not 1 <= n <= 3:
+        raise ValueError(f"Expected axis specification to be a non-empty string of upto 3 characters, got {seq}")
+    if not isinstance(seq, str) or not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
+        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or ['X', 'Y', 'Z'], got {seq}")
+    if any(seq[i] == seq[i + 1] for i in range(n - 1)):
+        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
+
+
 def _int_dim(n, name):
     """A size argument (`num`) as scipy reads it: integers, and floats of integer value."""
     if isinstance(n, (float, np.floating)) and float(n).is_integer():
@@ -151,9 +165,11 @@ def _lead_shape(num, shape):
         return (_int_dim(num, "num"),)
     if shape is None:
         return ()
-    if isinstance(shape, (int, np.integer)):
+    if isinstance(shape, (int, np.integer)) and not isinstance(shape, bool):
         return (int(shape),)
-    return tuple(_int_dim(k, "shape") for k in shape)
+    if isinstance(shape, tuple) and all(isinstance(k, (int, np.integer)) for k in shape):
+        return tuple(int(k) for k in shape)
+    raise ValueError(f"`shape` must be an int or a tuple of ints, got {shape!r}.")
 
 
 class Rotation:
@@ -198,7 +214,14 @@ class Rotation:
     def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
         """From quaternions (scalar-last unless `scalar_first`), as scipy's
         ``Rotation(quat, normalize, copy, scalar_first)``; the ``from_...``
-        constructors are the documented way."""
+        constructors are the documented way.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation([0, 0, 0, 2]).as_quat()
+        array([0., 0., 0., 1.])
+        """
         a = _shape_check(_floats(quat, "quat"), "quat", _Q, "(..., 4)")
         if normalize:
             q = _house_in(a, bool(scalar_first), "quat")
@@ -275,6 +298,20 @@ class Rotation:
         """
         return self._q
 
+    @property
+    def _quat(self):
+        """scipy's internal array (x, y, z, w), ``(1, 4)`` for a single rotation: a
+        copy, for code written against scipy's internals (read only).
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation.identity()._quat
+        array([[0., 0., 0., 1.]])
+        """
+        q = self.as_quat()
+        return q[None] if self._single else q
+
     # ------------------------------------------------------------------
     # shape, indexing, iteration
 
@@ -316,7 +353,14 @@ class Rotation:
         return self._q.shape[0]
 
     def __bool__(self):
-        """Always True (also for an empty stack), as in scipy."""
+        """Always True (also for an empty stack), as in scipy.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> bool(Rotation.identity(0))
+        True
+        """
         return True
 
     def __getitem__(self, indexer):
@@ -380,20 +424,51 @@ class Rotation:
             yield Rotation._from_house(sub, sub.ndim == 1)
 
     def __getstate__(self):
+        """The stored array and the `single` flag (pickling, ``copy``).
+
+        Examples
+        --------
+        >>> import pickle
+        >>> from quatarray import Rotation
+        >>> pickle.loads(pickle.dumps(Rotation.identity(2))).shape
+        (2,)
+        """
         return (self._q, self._single)
 
     def __setstate__(self, state):
+        """Restore from :meth:`__getstate__` (a copy of the array)."""
         q, single = state
         self._q = np.array(q, copy=True)
         self._single = bool(single)
 
     def __copy__(self):
+        """A rotation holding a copy of the array (as scipy's copies do).
+
+        Examples
+        --------
+        >>> import copy
+        >>> from quatarray import Rotation
+        >>> r = Rotation.identity(2)
+        >>> copy.copy(r).wxyz is r.wxyz, copy.deepcopy(r).shape
+        (False, (2,))
+        """
         return Rotation._from_house(self._q.copy(), self._single)
 
     def __deepcopy__(self, memo):
+        """As :meth:`__copy__` (the array holds no references)."""
         return Rotation._from_house(self._q.copy(), self._single)
 
     def __repr__(self):
+        """scipy's: ``Rotation.from_matrix(...)`` with the matrices.
+
+        Examples
+        --------
+        >>> from quatarray import Rotation
+        >>> Rotation.identity()
+        Rotation.from_matrix(array([[1., 0., 0.],
+                                    [0., 1., 0.],
+                                    [0., 0., 1.]]))
+        """
         m = f"{self.as_matrix()!r}".splitlines()
         m[1:] = [" " * 21 + m[i] for i in range(1, len(m))]
         return "Rotation.from_matrix(" + "\n".join(m) + ")"
@@ -401,8 +476,8 @@ class Rotation:
     # ------------------------------------------------------------------
     # quaternions
 
-    @classmethod
-    def from_quat(cls, quat, *, scalar_first=False):
+    @staticmethod
+    def from_quat(quat, *, scalar_first=False):
         """Rotations from quaternions, normalised; scalar-last (x, y, z, w) by default.
 
         Parameters
@@ -428,12 +503,12 @@ class Rotation:
             out = np.empty(4, a.dtype)
             if _quat_in.serial(a[None], bool(scalar_first), out[None]):
                 out = _house_in(a, bool(scalar_first), "quat")
-            r = object.__new__(cls)
+            r = object.__new__(Rotation)
             r._q = out
             r._single = True
             return r
         q = _house_in(a, bool(scalar_first), "quat")
-        return cls._from_house(q, False)
+        return Rotation._from_house(q, False)
 
     def as_quat(self, canonical=False, *, scalar_first=False):
         """The quaternions (a new array), scalar-last (x, y, z, w) by default.
@@ -465,8 +540,8 @@ class Rotation:
     # ------------------------------------------------------------------
     # other representations
 
-    @classmethod
-    def from_matrix(cls, matrix, *, assume_valid=False):
+    @staticmethod
+    def from_matrix(matrix, *, assume_valid=False):
         """Rotations from rotation matrices, projected to the nearest rotation where
         they are not orthogonal (as scipy); a determinant ≤ 0 raises ``ValueError``.
 
@@ -480,9 +555,14 @@ class Rotation:
         m = _shape_check(_floats(matrix, "matrix"), "matrix", (3, 3), "(..., 3, 3)")
         try:
             q = _conv.from_matrix(m, assume_valid=bool(assume_valid))
-        except ValueError as exc:
-            raise ValueError(str(exc).replace("`m`", "`matrix`")) from None
-        return cls._from_house(q, q.ndim == 1)
+        except ValueError:
+            flat = m.reshape(-1, 3, 3)
+            k = int(np.argmax(~(np.linalg.det(flat) > 0)))
+            raise ValueError(
+                "Non-positive determinant (left-handed or null coordinate frame) in rotation "
+                f"matrix {k}: {flat[k]}."
+            ) from None
+        return Rotation._from_house(q, q.ndim == 1)
 
     def as_matrix(self):
         """The rotation matrices, shape ``(..., 3, 3)``.
@@ -497,8 +577,8 @@ class Rotation:
         """
         return _map(_conv._as_matrix, self._q, _Q, (3, 3))
 
-    @classmethod
-    def from_rotvec(cls, rotvec, degrees=False):
+    @staticmethod
+    def from_rotvec(rotvec, degrees=False):
         """Rotations from rotation vectors (angle × axis).
 
         Examples
@@ -507,11 +587,11 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 90], degrees=True).as_quat().round(8)
         array([0.        , 0.        , 0.70710678, 0.70710678])
         """
-        v = _shape_check(_floats(rotvec, "rotvec"), "rotvec", (3,), "(..., 3)")
+        v = _shape_check(_floats(rotvec, "rotvec"), "rot_vec", (3,), "(..., 3)")
         if degrees:
             v = v * _RAD
         q = _map(_conv._from_rotvec, v, (3,), _Q)
-        return cls._from_house(q, q.ndim == 1)
+        return Rotation._from_house(q, q.ndim == 1)
 
     def as_rotvec(self, degrees=False):
         """Rotation vectors, angle in [0, π] (or degrees).
@@ -527,8 +607,8 @@ class Rotation:
             res *= _DEG
         return res
 
-    @classmethod
-    def from_mrp(cls, mrp):
+    @staticmethod
+    def from_mrp(mrp):
         """Rotations from modified Rodrigues parameters.
 
         Examples
@@ -539,7 +619,7 @@ class Rotation:
         """
         p = _shape_check(_floats(mrp, "mrp"), "mrp", (3,), "(..., 3)")
         q = _map(_rep._from_mrp, p, (3,), _Q)
-        return cls._from_house(q, q.ndim == 1)
+        return Rotation._from_house(q, q.ndim == 1)
 
     def as_mrp(self):
         """Modified Rodrigues parameters (the shorter one, norm ≤ 1).
@@ -552,8 +632,8 @@ class Rotation:
         """
         return _map(_rep._as_mrp, self._q, _Q, (3,))
 
-    @classmethod
-    def from_euler(cls, seq, angles, degrees=False):
+    @staticmethod
+    def from_euler(seq, angles, degrees=False):
         """Rotations from Euler angles: 1 to 3 axes, ``"xyz"`` extrinsic, ``"XYZ"`` intrinsic.
 
         Examples
@@ -575,9 +655,17 @@ class Rotation:
                 _eul._from_euler.serial(*args)
                 if far[0]:
                     _eul._from_euler_far.serial(*args)
-                return cls._from_house(out[0], True)
+                return Rotation._from_house(out[0], True)
+        if seq not in _eul._SEQS:
+            _check_seq(seq, False)
+        k = len(seq)
+        if (a.shape[-1] if a.ndim else 1) != k:
+            got = a.shape[-1] if a.ndim else 1
+            raise ValueError(
+                f"Expected last dimension of `angles` to match number of sequence axes specified, got {got}."
+            )
         q = _eul.from_euler(seq, a, degrees=bool(degrees))
-        return cls._from_house(q, q.ndim == 1)
+        return Rotation._from_house(q, q.ndim == 1)
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles for a three-axis `seq` (scipy's ranges and gimbal-lock rule).
@@ -601,10 +689,12 @@ class Rotation:
                     if nl and not suppress_warnings:
                         warnings.warn(_eul._GIMBAL.format(n=1, total=1), UserWarning, stacklevel=2)
                     return out[0]
+        if type(seq) is not str or seq not in _eul._SEQS:
+            _check_seq(seq, True)
         return _eul.as_euler(q, seq, degrees=bool(degrees), suppress_warnings=bool(suppress_warnings))
 
-    @classmethod
-    def from_davenport(cls, axes, order, angles, degrees=False):
+    @staticmethod
+    def from_davenport(axes, order, angles, degrees=False):
         """Rotations from Davenport angles about 1 to 3 axes, each orthogonal to the next.
 
         Examples
@@ -616,7 +706,7 @@ class Rotation:
         array([90., 45.,  0.])
         """
         q = _dav.from_davenport(axes, order, angles, degrees=bool(degrees))
-        return cls._from_house(q, q.ndim == 1)
+        return Rotation._from_house(q, q.ndim == 1)
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the second orthogonal to the others).
@@ -811,8 +901,16 @@ class Rotation:
         array([0. , 0. , 0.2])
         """
         q = self._q if self._q.ndim > 1 else self._q[None]
-        if axis is not None and not isinstance(axis, (int, np.integer, tuple)):
-            raise ValueError("`axis` must be None, int, or tuple of ints.")
+        if q.size == 0:
+            raise ValueError("Mean of an empty rotation set is undefined.")
+        if axis is not None:
+            if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+                axis = (int(axis),)
+            if not isinstance(axis, tuple) or not all(isinstance(k, (int, np.integer)) for k in axis):
+                raise ValueError("`axis` must be None, int, or tuple of ints.")
+            nlead = q.ndim - 1
+            if axis and (min(axis) < -nlead or max(axis) > nlead - 1):
+                raise ValueError(f"axis {axis} is out of bounds for rotation with shape {q.shape[:-1]}.")
         acc, lead, dtype = _alg.mean_sums(q, weights, axis, unit=True)
         k = acc[:, _XYZW][:, :, _XYZW]  # scipy's order, so that eigh picks scipy's sign
         v = np.linalg.eigh(k)[1][..., -1]
@@ -860,8 +958,8 @@ class Rotation:
         """
         return cls._from_house(_sym.create_group(group, axis), False)
 
-    @classmethod
-    def concatenate(cls, rotations):
+    @staticmethod
+    def concatenate(rotations):
         """One stack of the rotations of a Rotation or a sequence of them, along the
         first axis (a single rotation counts as a stack of one).
 
@@ -872,17 +970,17 @@ class Rotation:
         (3,)
         """
         if isinstance(rotations, Rotation):
-            return cls._from_house(rotations._q.copy(), rotations._single)
+            return Rotation._from_house(rotations._q.copy(), rotations._single)
         rotations = list(rotations)
         if not all(isinstance(x, Rotation) for x in rotations):
             raise TypeError("input must contain Rotation objects only")
         if not rotations:
             raise IndexError("Expected at least one Rotation to concatenate, got none.")
         q = np.concatenate([x._q if x._q.ndim > 1 else x._q[None] for x in rotations])
-        return cls._from_house(q, False)
+        return Rotation._from_house(q, False)
 
-    @classmethod
-    def identity(cls, num=None, *, shape=None):
+    @staticmethod
+    def identity(num=None, *, shape=None):
         """Identity rotations: a single one (by default), `num` of them or a stack of `shape`.
 
         Examples
@@ -896,10 +994,10 @@ class Rotation:
         lead = _lead_shape(num, shape)
         q = np.zeros(lead + _Q)
         q[..., 0] = 1.0
-        return cls._from_house(q, q.ndim == 1)
+        return Rotation._from_house(q, q.ndim == 1)
 
-    @classmethod
-    def random(cls, num=None, *legacy, rng=None, shape=None, random_state=None):
+    @staticmethod
+    def random(num=None, *legacy, rng=None, shape=None, random_state=None):
         """Uniformly distributed rotations, the same draws as scipy's for the same seed.
 
         As scipy 1.17 (its transition from ``random_state`` to ``rng``): a seed
@@ -914,7 +1012,7 @@ class Rotation:
         ((3,), True)
         """
         if len(legacy) > 1:
-            raise TypeError(f"random() takes at most 2 positional arguments ({1 + len(legacy)} given)")
+            raise TypeError(f"random() takes from 0 to 2 positional arguments but {1 + len(legacy)} were given")
         seeds = [x for x in (legacy[0] if legacy else None, random_state) if x is not None]
         if len(seeds) + (rng is not None) > 1:
             raise TypeError("Expected only one of `rng` and `random_state`.")
@@ -928,10 +1026,10 @@ class Rotation:
         else:
             gen = np.random.default_rng(seed)
         sample = gen.normal(size=lead + _Q)
-        return cls._from_house(_house_in(sample, False, "quat"), sample.ndim == 1)
+        return Rotation._from_house(_house_in(sample, False, "quat"), sample.ndim == 1)
 
-    @classmethod
-    def align_vectors(cls, a, b, weights=None, return_sensitivity=False):
+    @staticmethod
+    def align_vectors(a, b, weights=None, return_sensitivity=False):
         """The rotation that best maps the vectors `b` onto `a` (least squares with
         `weights`), its rssd and, if asked, the sensitivity matrix, as scipy.
 
@@ -971,9 +1069,20 @@ class Rotation:
                 )
             if n == 1:
                 w = w[:1]
+            if np.any(w < 0):
+                raise ValueError("`weights` may not contain negative values")
             weights = w
+        inf = np.isinf(weights) if weights is not None else np.zeros(n, bool)
+        if inf.sum() > 1:
+            raise ValueError("Only one infinite weight is allowed")
+        if (n == 1 or inf.any()) and return_sensitivity:
+            raise ValueError("Cannot return sensitivity matrix with an infinite weight or one vector pair")
+        if n == 1 or inf.any():
+            k = int(np.argmax(inf)) if inf.any() else 0
+            if not (np.any(a2[k] != 0) and np.any(b2[k] != 0)):
+                raise ValueError("Cannot align zero length primary vectors")
         res = _align.align_vectors(a2, b2, weights, bool(return_sensitivity))
-        r = cls._from_house(res[0], True)
+        r = Rotation._from_house(res[0], True)
         return (r,) + tuple(res[1:])
 
 
