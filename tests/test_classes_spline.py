@@ -426,3 +426,24 @@ def test_pickle_and_copy(rng, cls):
     new = samples(rng, times)
     for other in (pickle.loads(pickle.dumps(spl)), copy.deepcopy(spl), copy.copy(spl)):
         assert np.array_equal(other(new).wxyz, spl(new).wxyz)
+
+
+@pytest.mark.parametrize("method", ["bezier", "cubic"])
+def test_parallel_loops(rng, method):
+    """The parallel variants of the evaluation loops (long calls take them) give the same numbers."""
+    from quatarray import _jit
+
+    keys, times = keys_and_times(rng, 200)
+    mine, ref = both(keys)
+    new = samples(rng, times, 20000)
+    with _jit.variant("parallel"):
+        sl, spl, bz = Slerp(times, mine)(new), RotationSpline(times, mine), BezierSpline(times, mine, method=method)
+        np.testing.assert_allclose(quat(sl), quat(SSlerp(times, ref)(new)), rtol=0, atol=1e-12)
+        for order in (0, 1, 2):
+            got, want = spl(new, order), SRotationSpline(times, ref)(new, order)
+            if order == 0:
+                got, want = quat(got), quat(want)
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * max(1.0, np.abs(want).max()))
+            got = bz(new, order)
+            np.testing.assert_array_equal(got.wxyz if order == 0 else got,
+                                          qa.spline(times, keys, new, method=method, order=order))
