@@ -112,9 +112,9 @@ def create_group(group, axis="Z", dtype=np.float64):
            [0., 1., 0., 0.]])
     """
     if not isinstance(group, str):
-        raise ValueError(f"Expected `group` to be a string ('I', 'O', 'T', 'Dn' or 'Cn'), got {group!r}.")
+        raise ValueError(f"`group` must be a string ('I', 'O', 'T', 'Dn' or 'Cn'), got {group!r}.")  # noqa: TRY004 - as scipy
     if axis not in ("x", "y", "z", "X", "Y", "Z"):
-        raise ValueError(f"Expected `axis` to be one of x, y, z, X, Y, Z, got {axis!r}.")
+        raise ValueError(f"`axis` must be one of x, y, z, X, Y, Z, got {axis!r}.")
     d = float_dtype(dtype)
     k = "xyz".index(axis.lower())
     if group in ("I", "O", "T"):
@@ -122,10 +122,10 @@ def create_group(group, axis="Z", dtype=np.float64):
     elif group[:1] in ("C", "D") and group[1:].isdigit():
         n = int(group[1:])
         if n < 1:
-            raise ValueError(f"Expected the order of group {group!r} to be positive, got {n}.")
+            raise ValueError(f"Group order must be positive, got {n} in `group` {group!r}.")
         q = (_cyclic if group[0] == "C" else _dihedral)(n, k)
     else:
-        raise ValueError(f"Expected `group` to be one of 'I', 'O', 'T', 'Dn', 'Cn' (n a positive integer), got {group!r}.")
+        raise ValueError(f"`group` must be one of 'I', 'O', 'T', 'Dn', 'Cn' (n a positive integer), got {group!r}.")
     return np.ascontiguousarray(q, dtype=d)
 
 

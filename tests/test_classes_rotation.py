@@ -250,6 +250,14 @@ def test_davenport_fewer_axes(k):
     same(R.from_davenport([0, 0, 1], "e", 0.7), S.from_davenport([0, 0, 1], "e", 0.7))
 
 
+@pytest.mark.parametrize("shape", [(2, 3), (0,), (70,)])
+def test_as_davenport_stacks(shape):
+    axes = _axes(rng_(33), False)
+    r, s = pair(shape, 34)
+    close(r.as_davenport(axes, "e"), s.as_davenport(axes, "e"), 1e-10)
+    close(r.as_davenport(axes.tolist(), "intrinsic", degrees=True), s.as_davenport(axes, "intrinsic", degrees=True), 1e-8)
+
+
 def test_davenport_gimbal_lock_warns():
     axes = np.eye(3)[[2, 1, 2]]
     r = R.from_davenport(axes, "e", [0.3, 0.0, 0.2])
@@ -579,15 +587,15 @@ def _ops():
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(n=st.sampled_from([None, 1, 3, 6]), seed=st.integers(0, 2 ** 16), ops=_ops())
+@given(n=st.sampled_from([None, 1, 3, 6, (2, 3)]), seed=st.integers(0, 2 ** 16), ops=_ops())
 def test_random_operation_sequences(n, seed, ops):
     rng = np.random.default_rng(seed)
-    q = rng.standard_normal((4,) if n is None else (n, 4))
+    q = rng.standard_normal((4,) if n is None else np.atleast_1d(n).tolist() + [4])
     r, s = R.from_quat(q), S.from_quat(q)
     v = rng.standard_normal(3)
     for op, arg in ops:
         if op in ("mul", "rmul"):
-            other = np.random.default_rng(arg).standard_normal((4,) if r.single else (len(r), 4))
+            other = np.random.default_rng(arg).standard_normal(r.shape + (4,))
             ro, so = R.from_quat(other), S.from_quat(other)
             r, s = (r * ro, s * so) if op == "mul" else (ro * r, so * s)
         elif op == "inv":

@@ -8,7 +8,7 @@ functional layer (:func:`quatarray.multiply`, :func:`quatarray.rotate`, ...).
 without a copy.
 """
 
-import copy as _copy
+import inspect
 import math
 import operator
 import warnings
@@ -22,8 +22,8 @@ from .. import conversions as _conv
 from .. import davenport as _dav
 from .. import euler as _eul
 from .. import representations as _rep
-from .. import symmetry as _sym
 from .. import rotation as _rot
+from .. import symmetry as _sym
 from .._jit import prange, rowloop
 from .._validate import as_float, check_core, elementwise
 
@@ -192,9 +192,22 @@ class Rotation:
     object and the functional style (``quatarray.rotate(r.wxyz, v)``).
 
     Beyond scipy: float32 in stays float32 (scipy computes in float64), and
-    the ``wxyz``/``from_wxyz`` pair. Differences: a tuple index ``r[i, j]``
-    indexes the stack as numpy does (scipy 1.17 reads the tuple as a list of
-    first-axis indices), and an ``Ellipsis`` may be part of an index.
+    the ``wxyz``/``from_wxyz`` pair.
+
+    Differences from scipy 1.17, all where scipy's answer is an accident:
+
+    - a tuple index ``r[i, j]`` indexes the stack as numpy does (scipy reads
+      the tuple as a list of first-axis indices), and an ``Ellipsis`` may be
+      part of an index;
+    - ``reduce``: where several members l·p·r have the same smallest angle
+      (groups sharing members), the first in the order of `left`, then
+      `right`, is taken; scipy's pick among them follows its rounding;
+    - ``as_davenport`` with the first axis equal to the third gives the angle
+      set of ``as_euler`` (middle angle ≥ 0); scipy picks either set by the
+      sign of rounding noise;
+    - a non-Rotation argument of ``approx_equal`` or ``reduce`` raises
+      ``TypeError`` (scipy: ``AttributeError``); error messages name the
+      problem in scipy's words, sometimes with more detail.
 
     Examples
     --------
@@ -721,7 +734,22 @@ class Rotation:
         array([10., 20., 30.])
         """
         q = self._q if not self._single else self._q[None]
-        res = _dav.as_davenport(q, axes, order, degrees=bool(degrees), suppress_warnings=bool(suppress_warnings))
+        ax = _floats(axes, "axes")
+        small = ax.shape == (3, 3) and ax.dtype == q.dtype and q.ndim == 2 and len(q) <= 64
+        if small and isinstance(order, str) and order in _ORDERS:  # a few rotations: no front end
+            ax = (ax / np.sqrt((ax * ax).sum(axis=1))[:, None]).astype(q.dtype, copy=False)
+            if not ((ax[0] @ ax[1]) < 1e-7 and (ax[1] @ ax[2]) < 1e-7):
+                _dav._check_orthogonal(ax, signed=True)
+            out = np.empty((len(q), 3), q.dtype)
+            locked = np.zeros(len(q), np.bool_)
+            axr = np.broadcast_to(ax, (len(q), 3, 3))
+            _dav._as_davenport.serial(q, axr, _ORDERS[order], q.dtype.type(_DEG if degrees else 1.0), out, locked)
+            n = int(locked.sum())
+            if n and not suppress_warnings:
+                warnings.warn(_dav._GIMBAL.format(n=n, total=len(q)), UserWarning, stacklevel=2)
+            res = out
+        else:
+            res = _dav.as_davenport(q, ax, order, degrees=bool(degrees), suppress_warnings=bool(suppress_warnings))
         return res[0] if self._single and res.ndim == 2 and res.shape[0] == 1 else res
 
     # ------------------------------------------------------------------
@@ -824,13 +852,15 @@ class Rotation:
                 raise ValueError("Array exponent must be a scalar")
         q = self._q
         if n == 0:
-            out = _alg.identity(q.shape[:-1], dtype=q.dtype)
+            out = np.zeros(q.shape, q.dtype)
+            out[..., 0] = 1
         elif n == -1:
-            out = _alg.conjugate(q)
+            out = q * _CONJ[q.dtype]
         elif n == 1:
             out = q.copy()
         else:
-            out = _conv.from_rotvec(n * _conv.as_rotvec(q))
+            rv = n * _map(_conv._as_rotvec, q, _Q, (3,))
+            out = _map(_conv._from_rotvec, _floats(rv, "n"), (3,), _Q)
         return Rotation._from_house(out, self._single)
 
     def inv(self):
@@ -887,6 +917,13 @@ class Rotation:
                 f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} rotations in first "
                 f"and {q.shape[:-1]} rotations in second object."
             ) from None
+        if p.shape == q.shape and p.dtype is q.dtype:  # the kernel on the rows, no front end
+            d = np.empty(p.shape[:-1], p.dtype)
+            if p.size:
+                pf, qf, df = p.reshape(-1, 4), q.reshape(-1, 4), d.reshape(-1)
+                if _alg._distance.first.serial(pf, qf, df) if len(pf) == 1 else _alg._distance.first(pf, qf, df):
+                    _alg._distance.again(pf, qf, df)
+            return np.less(d, atol)
         return np.less(_alg.distance(p, q), atol)
 
     def mean(self, weights=None, axis=None):
@@ -911,8 +948,13 @@ class Rotation:
             nlead = q.ndim - 1
             if axis and (min(axis) < -nlead or max(axis) > nlead - 1):
                 raise ValueError(f"axis {axis} is out of bounds for rotation with shape {q.shape[:-1]}.")
-        acc, lead, dtype = _alg.mean_sums(q, weights, axis, unit=True)
-        k = acc[:, _XYZW][:, :, _XYZW]  # scipy's order, so that eigh picks scipy's sign
+        if weights is None and axis is None and q.ndim == 2 and len(q) <= 64 and np.isfinite(q).all():
+            x = q[:, _XYZW].astype(np.float64)  # a few rotations: the sum by one product
+            k = (x.T @ x)[None]
+            lead, dtype = (), q.dtype
+        else:
+            acc, lead, dtype = _alg.mean_sums(q, weights, axis, unit=True)
+            k = acc[:, _XYZW][:, :, _XYZW]  # scipy's order, so that eigh picks scipy's sign
         v = np.linalg.eigh(k)[1][..., -1]
         out = np.ascontiguousarray(v[:, _WXYZ], dtype=dtype).reshape(lead + _Q)
         return Rotation._from_house(out, out.ndim == 1)
@@ -1086,8 +1128,22 @@ class Rotation:
         return (r,) + tuple(res[1:])
 
 
+def _scipy_random_signature():
+    """``random``'s signature as scipy shows it: (num=None, rng=None, *, shape=None,
+    random_state=None); the implementation takes ``rng`` by position apart (scipy's
+    transition from ``random_state``: a positional seed is a legacy one)."""
+    P = inspect.Parameter
+    return inspect.Signature([
+        P("num", P.POSITIONAL_OR_KEYWORD, default=None), P("rng", P.POSITIONAL_OR_KEYWORD, default=None),
+        P("shape", P.KEYWORD_ONLY, default=None), P("random_state", P.KEYWORD_ONLY, default=None),
+    ])
+
+
+Rotation.__dict__["random"].__func__.__signature__ = _scipy_random_signature()
+
 _DEG = 180.0 / math.pi
 _RAD = math.pi / 180.0
 _CONJ = {d: np.array([1, -1, -1, -1], d) for d in _FLOATS}
 _XYZW = [1, 2, 3, 0]
+_ORDERS = {"e": True, "extrinsic": True, "i": False, "intrinsic": False}
 _WXYZ = [3, 0, 1, 2]
