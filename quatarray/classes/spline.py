@@ -382,17 +382,15 @@ class BezierSpline:
 
     def __init__(self, times, rotations, method="bezier"):
         _sp.check_method(method)
+        q = rotations
         if isinstance(rotations, Rotation) or _is_scipy_rotation(rotations):
             q, single = _keys(rotations)
             if single:
                 raise ValueError("`rotations` must be a sequence of rotations.")
-            name = "rotations"
-        else:
-            q, name = rotations, "rotations"
-        q = check_core(as_float(q, name), name, (4,))
+        q = check_core(as_float(q, "rotations"), "rotations", (4,))
         if q.ndim != 2:
             raise ValueError("Rotations with more than 1 leading dimension are not supported."
-                             if q.ndim > 2 else f"Expected `{name}` to have shape (K, 4), got {q.shape}.")
+                             if q.ndim > 2 else f"Expected `rotations` to have shape (K, 4), got {q.shape}.")
         if q.shape[0] < 2:
             raise ValueError("`rotations` must contain at least 2 rotations.")
         self.method = method
