@@ -44,6 +44,7 @@ _MODULES = {
         "sclerp", "pose_power", "pose_mean", "pose_spline",
     ],
     "classes.rigid_transform": ["RigidTransform"],
+    "classes.spline": ["Slerp", "RotationSpline", "BezierSpline"],
     "_warmup": ["warmup"],  # not `warmup.py`: importing it would shadow the function
 }
 _WHERE = {name: mod for mod, names in _MODULES.items() for name in names}

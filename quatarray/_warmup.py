@@ -212,6 +212,14 @@ def _clip_resample(method):
         r = clip.resample(times=s.new_sorted, method=method)
         cols = [j for j, o in enumerate(clip.orders) if o]
         resample_streams(clip.times, r.times, clip.rotations, cols, method, np.empty_like(r.rotations))
+def _spline_class(name, orders=(0,)):  # one order an entry: each a first call of its own
+    """A spline class of quatarray (``Slerp``, ``RotationSpline``, ``BezierSpline``) built
+    on the sample keys and called on sorted and unsorted new times, in each `order`."""
+    def run(qa, s):
+        spl = getattr(qa, name)(s.times, qa.Rotation.from_wxyz(s.keys))
+        for new in (s.new_sorted, s.new_unsorted):
+            for order in orders:
+                spl(new, order) if order else spl(new)
 
     return run
 
@@ -371,6 +379,10 @@ TABLE = {
     # the rate loops serve sorted and unsorted new times alike
     **{f"spline[{m}, order={o}]": _spline(m, "new_unsorted", o)
        for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
+    # the spline classes (their kernels are the spline's: these compile what their calls add)
+    "Slerp": _spline_class("Slerp"),
+    **{f"{c}{'' if o == 0 else f'[order={o}]'}": _spline_class(c, (o,))
+       for c in ("RotationSpline", "BezierSpline") for o in (0, 1, 2)},
     "angular_velocity": _f("angular_velocity", lambda f, s: [f(s.keys, s.times, frame=fr) for fr in ("space", "body")]),
     "integrate_angular_velocity": _f("integrate_angular_velocity", lambda f, s: [
         f(s.v[: len(s.times)], s.times, frame=fr, hold=h) for fr in ("space", "body") for h in ("mean", "start")]),
