@@ -212,6 +212,10 @@ def _clip_resample(method):
         r = clip.resample(times=s.new_sorted, method=method)
         cols = [j for j, o in enumerate(clip.orders) if o]
         resample_streams(clip.times, r.times, clip.rotations, cols, method, np.empty_like(r.rotations))
+
+    return run
+
+
 def _spline_class(name, orders=(0,)):  # one order an entry: each a first call of its own
     """A spline class of quatarray (``Slerp``, ``RotationSpline``, ``BezierSpline``) built
     on the sample keys and called on sorted and unsorted new times, in each `order`."""
@@ -279,6 +283,8 @@ def _eval_verb(qa, s):
             for align in ("none", "sim3"):
                 evaluate.run(*names, metric=metric, align=align, chunk=3, stdout=null, stderr=null)
                 evaluate.run(*names, metric=metric, align=align, fmt="tum", stdout=null, stderr=null)
+
+
 def _rotation_class(R, s):
     """Every method of ``quatarray.Rotation`` on a stack and a single rotation."""
     xyzw = s.p[:, [1, 2, 3, 0]]
