@@ -231,3 +231,13 @@ def test_demo_clip_outputs(demo_run):
     assert qa.distance(clip.rotations, ref.rotations).max() < 1e-9
     if plot.have_matplotlib():
         assert (out / "walk_trajectories.png").read_bytes()[:8] == PNG
+
+
+def test_bench_leaves_out_a_peer_call_that_crashes(monkeypatch, capsys):
+    from quatarray import bench as B
+
+    monkeypatch.setattr(B, "PROBES", {"peer.dies": "import os; os.abort()", "peer.works": "pass"})
+    monkeypatch.setattr(B, "_PROBED", {})
+    assert B.peer_crashes("peer.dies") is True
+    assert "peer.dies crashed" in capsys.readouterr().err
+    assert B.peer_crashes("peer.works") is False
