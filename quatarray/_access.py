@@ -18,14 +18,16 @@ bound the addresses and vectorise the row loops (numba addresses ``a[i, c]``
 with the run-time row length ``a.shape[1]``, which keeps it from doing so);
 other layouts (strided, broadcast) are addressed by their strides. The row
 length must be exactly the one named (the front end guarantees it). Without
-the JIT the plain-Python bodies run.
+the JIT the plain-Python bodies run. With ``QUATARRAY_CHECK_BOUNDS=1`` (the
+debug mode, see :mod:`quatarray._jit`) every access checks its index and raises
+``IndexError`` past the array.
 """
 
 from numba import types
 from numba.core import cgutils
 from numba.extending import lower_builtin, type_callable
 
-from ._jit import element
+from ._jit import CHECK_BOUNDS, element
 
 
 def load1(a, i):
@@ -118,6 +120,8 @@ def _pointer(context, builder, aryty, ary, i, c, width):
     i = context.cast(builder, i[0], types.unliteral(i[1]), types.intp)
     j = builder.add(builder.mul(i, context.get_constant(types.intp, width)), context.get_constant(types.intp, c))
     if aryty.layout == "C":
+        if CHECK_BOUNDS:  # the debug mode: the flat index within the buffer
+            cgutils.do_boundscheck(context, builder, j, ary.nitems)
         return builder.gep(ary.data, [j], inbounds=True)
     if aryty.ndim == 1:
         index = [j]
@@ -127,7 +131,8 @@ def _pointer(context, builder, aryty, ary, i, c, width):
         index = [i, context.get_constant(types.intp, c // 3), context.get_constant(types.intp, c % 3)]
     shape = cgutils.unpack_tuple(builder, ary.shape, aryty.ndim)
     strides = cgutils.unpack_tuple(builder, ary.strides, aryty.ndim)
-    return cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, aryty.layout, index)
+    return cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, aryty.layout, index,
+                                     boundscheck=CHECK_BOUNDS)
 
 
 def _align(aryty):

@@ -13,6 +13,12 @@ Environment variables
 QUATARRAY_NO_CACHE
     Set to ``1`` to keep numba's on-disk cache off (for read-only
     installs or when debugging a kernel).
+QUATARRAY_CHECK_BOUNDS
+    Set to ``1`` for the debug mode of the kernels: every row load and store
+    (:mod:`quatarray._access`) and every numba array index checks its bounds
+    and raises ``IndexError`` instead of reading or writing past an array;
+    the on-disk cache is off. Slow; for running the test suite once after a
+    change to a kernel or to the front end that guards it.
 QUATARRAY_CACHE_LOCK
     A file's path: every write of this process to numba's on-disk cache
     holds an exclusive lock on that file (POSIX). For processes that share
@@ -273,11 +279,15 @@ _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
 _STANDARD_LOCATORS = []
 _stamp_the_package()
 
-CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no")
+# The debug mode of the row accessors (QUATARRAY_CHECK_BOUNDS=1): every load and
+# store checks its index, and so does numba's own indexing; such code is never
+# cached (it would be loaded by processes without the checks, and vice versa).
+CHECK_BOUNDS = os.environ.get("QUATARRAY_CHECK_BOUNDS", "0") == "1"
+CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no") and not CHECK_BOUNDS
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
 
 # error_model="numpy": 1/0 gives inf or nan instead of raising, as numpy does.
-_OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy")
+_OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy", **({"boundscheck": True} if CHECK_BOUNDS else {}))
 
 prange = numba.prange
 # jit_options of an ``@overload`` that LLVM inlines into every caller (see ``inline``)
