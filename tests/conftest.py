@@ -36,3 +36,8 @@ def pytest_collection_modifyitems(session, config, items):
     one worker runs it while the others take the rest."""
     first = [item for item in items if item.nodeid.endswith("test_kernels_as_plain_python")]
     items[:] = first + [item for item in items if item not in first]
+
+
+# tests/typing holds scripts for the type checker (tests/test_typing.py), not tests:
+# one of them fails on purpose when run
+collect_ignore_glob = ["typing/*"]
