@@ -12,7 +12,7 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, store1
 from ._jit import inline, kernel, like, prange, rowloop, specialise
-from ._slerp import arc, arc_slerp, bezier_seg, bisect4, controls4, double4, nlerp4, slerp4
+from ._slerp import arc, arc_slerp, bezier_seg, bisect4, controls4, double4, nlerp4, slerp4, unflip_sign
 from .interpolation import tangent_scales
 from .splines import BLOCK, TABLED, next_run, resample_unit, unit_keys
 
@@ -73,7 +73,7 @@ def _gather_unit(p, cols, out):
                 if s < cols.shape[0]:
                     j = cols[s]
                     r = E.qnormalize((p[k, j, 0], p[k, j, 1], p[k, j, 2], p[k, j, 3]))
-                    if k > 0 and E.qdot(r, load_lane(out, b - G4, l)) < zero:
+                    if k > 0 and unflip_sign(load_lane(out, b - G4, l), r) < zero:
                         r = E.qneg(r)
                 else:
                     r = (one, zero, zero, zero)

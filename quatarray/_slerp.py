@@ -17,17 +17,63 @@ convention of :func:`quatarray.power`.
 
 import numpy as np
 
-from ._elements import qdot
+from ._elements import qconj, qdot, qmul
 from ._jit import element, fmuladd, inline, like
-from ._trace import select, traced
+from ._trace import float_bits, select, traced
 from ._trig import half_arc, sincos
+
+
+TIE_64 = 2.0**-46  # the tie band of flip_rule: 64 ulp of 1
+TIE_32 = 2.0**-17
+
+
+@traced
+def tie_band(x):
+    """TIE of x's float type (see the module docstring)."""
+    return like(x, TIE_32 if float_bits(x) == 32 else TIE_64)
+
+
+@traced
+def flip_rule(p, q, d, tol, tol_v):
+    """(flip, chain) for q after p, given d (p·q, or 4p·q = |p + q|² − |p − q|²), tol
+    the tie band on d's scale and tol_v on p·q's (TIE·(|p|² + |q|²)/2: what a
+    component of D = p* ⊗ q may be and still count as 0).
+
+    flip: q goes into p's hemisphere: d < −tol, or a tie (|d| ≤ tol) whose D has
+    a negative first non-negligible x, y, z (scipy's canonical rule for w = 0).
+    Negating p or q negates d and D, so negates flip.
+    chain: false only where nothing decides (a zero or nan row): flip is then
+    false whatever the signs, so a sign carried along a stream stops there."""
+    dv = qmul(qconj(p), q)
+    x, y, z = dv[1], dv[2], dv[3]
+    bx = abs(x) > tol_v
+    by = abs(y) > tol_v
+    f = select(bx, x, select(by, y, z))
+    zero = like(d, 0.0)
+    below = d < -tol
+    flip = below | ((abs(d) <= tol) & (f < zero))
+    chain = below | (d > tol) | bx | by | (abs(z) > tol_v)
+    return flip, chain
+
+
+@traced
+def unflip_sign(p, q):
+    """What :func:`quatarray.unflip` does to q after p (as it stands): −1 negate (p·q < 0,
+    or the tie rule of :func:`flip_rule`), 1 keep, 0 keep whatever the signs (a zero or
+    nan row: a sign carried along the stream stops there). Negating p or q negates a
+    non-zero sign."""
+    tol = tie_band(p[0]) * like(p[0], 0.5) * (qdot(p, p) + qdot(q, q))
+    flip, chain = flip_rule(p, q, qdot(q, p), tol, tol)
+    one = like(p[0], 1.0)
+    return select(chain, select(flip, -one, one), like(p[0], 0.0))
 
 
 @traced
 def arc(p, q, shortest):
     """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
 
-    f = 2 when p·q < 0 and `shortest` is 1.0, else 0 (`shortest` is a float
+    f = 2 when `shortest` is 1.0 and :func:`flip_rule` flips q (p·q < 0, or the
+    tie rule), else 0 (`shortest` is a float
     flag: a runtime boolean in the loop keeps LLVM from vectorising); the flip
     costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|) ∈ [0, π]
     from the chords a = |p − sq|, b = |p + sq|; v is the unit tangent at p
@@ -42,7 +88,9 @@ def arc(p, q, shortest):
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
     d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
     s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
-    flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
+    # 4 p·q = |p+q|² − |p−q|², the tie band on the scale of 2(|p|² + |q|²) = s2 + d2
+    tol = tie_band(d2) * (s2 + d2)
+    flip = flip_rule(p, q, s2 - d2, tol, like(d2, 0.25) * tol)[0] & (shortest > like(d2, 0.0))
     m2 = select(flip, s2, d2)
     p2 = select(flip, d2, s2)
     # 2 when flipped, else 0, converted from the boolean (a select or copysign

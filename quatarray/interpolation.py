@@ -23,7 +23,7 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
-from ._slerp import arc, bezier4, bisect4, controls4, double4, lerp4, nlerp4, squad4
+from ._slerp import arc, bezier4, bisect4, controls4, double4, lerp4, nlerp4, squad4, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, elementwise, key_array, key_times, scan
 
@@ -117,6 +117,19 @@ def _lerp(p, q, t, out):
 
 
 @rowloop
+def _unflip_signs(p, q, out):
+    """:func:`quatarray._slerp.unflip_sign` of rows (for the Dask sign scans)."""
+    for i in prange(p.shape[0]):
+        out[i] = unflip_sign(load4(p, i), load4(q, i))
+
+
+def unflip_signs(p, q):
+    """What :func:`unflip` does to each row of `q` after the row of `p`, shape (...):
+    −1 negate, 1 keep, 0 keep whatever the signs (`q` or `p` a zero or nan row)."""
+    return elementwise(_unflip_signs, [(p, "p", Q), (q, "q", Q)], [()])
+
+
+@rowloop
 def _double(p, q, out):
     n = p.shape[0] // 4
     for blk in prange((n + ROWS - 1) // ROWS):
@@ -197,7 +210,7 @@ def _unflip(q, out):
         out[0, m, 0], out[0, m, 1], out[0, m, 2], out[0, m, 3] = prev
         for k in range(1, q.shape[0]):
             cur = (q[k, m, 0], q[k, m, 1], q[k, m, 2], q[k, m, 3])
-            if E.qdot(cur, prev) < like(q, 0.0):
+            if unflip_sign(prev, cur) < like(q, 0.0):
                 cur = E.qneg(cur)
             out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = cur
             prev = cur
@@ -520,6 +533,13 @@ def squad(q0, s0, s1, q1, t, out=None):
 def unflip(q, axis=0):
     """Sign continuity along a stream: q[i] is negated when its dot product with
     q[i−1] (already processed) is negative. Rotations are unchanged.
+
+    A tie (q[i] a half turn from q[i−1]: dot product 0, to 64 ulp) is resolved by
+    the relative rotation D = q[i−1]* ⊗ q[i], as scipy resolves it: q[i] is
+    negated when the first non-negligible of D's x, y, z is negative (see
+    :mod:`quatarray._slerp`). The rule depends on D only, so
+    ``unflip(R ⊗ q)`` is ``R ⊗ unflip(q)`` for any rotation R (to rounding).
+    A zero or nan row is kept as it is, and so is the row after it.
 
     `axis` counts the leading (non-quaternion) axes. Returns a new array.
 
