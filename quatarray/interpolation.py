@@ -23,7 +23,7 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
-from ._slerp import arc, bezier4, bisect4, controls4, double4, lerp4, nlerp4, squad4, unflip_sign
+from ._slerp import arc, bezier4, bisect4, controls4, double4, flip_rule, lerp4, nlerp4, squad4, tie_band, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, elementwise, key_array, key_times, scan
 
@@ -97,8 +97,10 @@ def _nlerp(p, q, t, shortest, out):
             qi = load4(q, i)
             d = pi[0] * qi[0] + pi[1] * qi[1] + pi[2] * qi[2] + pi[3] * qi[3]
             s = like(ti, 1.0) - ti
+            tol = tie_band(ti) * like(ti, 0.5) * (E.qdot(pi, pi) + E.qdot(qi, qi))
+            flip = flip_rule(pi, qi, d, tol, tol)[0] & (shortest > like(ti, 0.0))  # the tie rule of _slerp
             # −t when q is flipped into p's hemisphere; 0 or 2 from the boolean (no select)
-            ts = ti - like(ti, 2.0) * (d * shortest < like(ti, 0.0)) * ti
+            ts = ti - like(ti, 2.0) * flip * ti
             store4(out, i, nlerp4(pi, qi, s, ts))
 
 
@@ -295,7 +297,8 @@ def lerp(p, q, t, out=None):
 def nlerp(p, q, t, shortest=True, out=None):
     """Normalised linear blend ((1 − t) p + t q)/|…|.
 
-    With ``shortest=True`` q is first flipped into p's hemisphere (p·q ≥ 0).
+    With ``shortest=True`` q is first flipped into p's hemisphere (p·q ≥ 0; a
+    pair a half turn apart, p·q = 0, by the tie rule of :func:`slerp`).
 
     Examples
     --------
@@ -336,6 +339,13 @@ def slerp(p, q, t, shortest=True, out=None):
     antipodal inputs; about one ulp from the exact result in float64. Exactly
     antipodal p = −q with ``shortest=False`` has no unique arc and follows
     p ⊗ (cos tπ, sin tπ, 0, 0).
+
+    A pair a half turn apart (p·q = 0, within 64 ulp: both arcs are equally
+    short) takes the arc scipy's ``Slerp`` takes for an exact tie: q is flipped
+    when the first non-negligible x, y, z of the relative rotation p* ⊗ q is
+    negative. The rule depends on p* ⊗ q only, so
+    ``slerp(r ⊗ p, r ⊗ q, t)`` is ``r ⊗ slerp(p, q, t)`` for any rotation r,
+    whatever sign rounding gives (r ⊗ p)·(r ⊗ q).
 
     Examples
     --------

@@ -467,6 +467,8 @@ def test_slerp_tie_is_equivariant(seed, axis, t):
     want = qa.multiply(r, qa.slerp(p, q, t))
     got = qa.slerp(qa.multiply(r, p), qa.multiply(r, q), t)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)
+    got = qa.nlerp(qa.multiply(r, p), qa.multiply(r, q), t)
+    np.testing.assert_allclose(got, qa.multiply(r, qa.nlerp(p, q, t)), rtol=0, atol=1e-14)
     # the arc is the one of scipy's rule: the relative rotation turns about the canonical axis
     rel = qa.multiply(qa.conjugate(p), qa.slerp(p, q, t))
     half = t * np.pi / 2
