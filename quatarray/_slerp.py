@@ -121,6 +121,53 @@ def arc(p, q, shortest):
 
 
 @traced
+def arc_fast(p, q, shortest):
+    """(θ, v, f, rare): :func:`arc` for the common pairs, with a cheaper tangent, and
+    whether the pair is a rare one that needs :func:`arc` itself.
+
+    With s = p + sq and d = p − sq (sq = ±q as :func:`arc` flips it), m2 = |d|²,
+    p2 = |s|², the tangent at p towards sq is (m2 s − p2 d)/(2ab) (a = |d|, b = |s|;
+    orthogonal to p and of norm |q| exactly, for unit p). Its terms never cancel
+    (near θ = 0 both are of order a², near θ = π/2 of order 1), so it is unit and
+    orthogonal to p within a few ulp without the projection and the normalisation of
+    :func:`arc`, for every pair with θ ≤ π/2: all pairs of ``shortest=True``. The
+    rare ones (then not resolved here): θ > π/2 (p2 < m2: nearly antipodal pairs of
+    ``shortest=False``, where s is only as certain as its rounding and the tangent
+    must be projected), identical ends (m2 = 0), ties (|p·q| within the tie band:
+    the rule of :func:`flip_rule`) and nan."""
+    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
+    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
+    d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
+    s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
+    zero = like(d2, 0.0)
+    diff = s2 - d2  # 4 p·q
+    flip = diff * shortest < zero
+    m2 = select(flip, s2, d2)
+    p2 = select(flip, d2, s2)
+    rare = ~(p2 >= m2) | ~(m2 > zero) | ((abs(diff) <= tie_band(d2) * (s2 + d2)) & (shortest > zero))
+    sgn = like(d2, 2.0) * flip
+    a = np.sqrt(m2)
+    b = np.sqrt(p2)
+    th = like(a, 2.0) * half_arc(a, b)
+    # s and d of sq: swapped (and d negated) when q is flipped
+    e0, e1, e2, e3 = select(flip, (dw, dx, dy, dz), (sw, sx, sy, sz))
+    g0, g1, g2, g3 = select(flip, (sw, sx, sy, sz), (dw, dx, dy, dz))
+    w = like(a, 1.0) / (like(a, 2.0) * a * b)
+    v = ((m2 * e0 - p2 * g0) * w, (m2 * e1 - p2 * g1) * w, (m2 * e2 - p2 * g2) * w, (m2 * e3 - p2 * g3) * w)
+    return th, v, sgn, rare
+
+
+@traced
+def slerp_row(p, q, s, c, v, k, t):
+    """p cos tθ + v sin tθ from s, c = sin tθ, cos tθ; k·q (k = ±1, the sign of q on the
+    arc) at t = 1 exactly (t = 0 is exact already: sincos(0) = (0, 1)). A select, not a
+    branch, so that the row loop runs as SIMD code."""
+    r = (fmuladd(s, v[0], c * p[0]), fmuladd(s, v[1], c * p[1]), fmuladd(s, v[2], c * p[2]),
+         fmuladd(s, v[3], c * p[3]))
+    return select(t == like(t, 1.0), (k * q[0], k * q[1], k * q[2], k * q[3]), r)
+
+
+@traced
 def slerp4(p, q, t, shortest=0.0):
     """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
     hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at

@@ -23,7 +23,7 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
-from ._slerp import arc, bezier4, bisect4, controls4, double4, flip_rule, lerp4, nlerp4, squad4, tie_band, unflip_sign
+from ._slerp import arc, arc_fast, bezier4, bisect4, controls4, double4, flip_rule, lerp4, nlerp4, slerp_row, squad4, tie_band, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, elementwise, key_array, key_times, scan
 
@@ -61,14 +61,28 @@ def _slerp(p, q, t, shortest, out):
         for sub in range(0, min(n - lo, ROWS), B):
             b0 = lo + sub
             m = min(n - b0, B)
+            rare = 0
             for k in range(m):
-                th, v, sgn = arc(load4(p, b0 + k), load4(q, b0 + k), shortest)
+                th, v, sgn, r = arc_fast(load4(p, b0 + k), load4(q, b0 + k), shortest)
                 pl[k] = load1(t, b0 + k) * th
                 pl[B + k] = v[0]
                 pl[2 * B + k] = v[1]
                 pl[3 * B + k] = v[2]
                 pl[4 * B + k] = v[3]
                 pl[5 * B + k] = like(th, 1.0) - sgn
+                rare += r
+            if rare:  # the few pairs arc_fast leaves to arc (nearly antipodal, identical, ties, nan)
+                for k in range(m):
+                    pk = load4(p, b0 + k)
+                    qk = load4(q, b0 + k)
+                    if arc_fast(pk, qk, shortest)[3]:
+                        th, v, sgn = arc(pk, qk, shortest)
+                        pl[k] = load1(t, b0 + k) * th
+                        pl[B + k] = v[0]
+                        pl[2 * B + k] = v[1]
+                        pl[3 * B + k] = v[2]
+                        pl[4 * B + k] = v[3]
+                        pl[5 * B + k] = like(th, 1.0) - sgn
             for k in range(m):
                 pl[k], pl[6 * B + k] = sincos(pl[k])
             for k in range(m):
@@ -77,12 +91,8 @@ def _slerp(p, q, t, shortest, out):
                 qi = load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
                 s = pl[k]
                 c = pl[6 * B + k]
-                r = (fmuladd(s, pl[B + k], c * pi[0]), fmuladd(s, pl[2 * B + k], c * pi[1]),
-                     fmuladd(s, pl[3 * B + k], c * pi[2]), fmuladd(s, pl[4 * B + k], c * pi[3]))
-                if load1(t, i) == like(s, 1.0):  # exact end (t = 0 is exact: sincos(0) = (0, 1))
-                    sq = pl[5 * B + k]
-                    r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
-                store4(out, i, r)
+                v = (pl[B + k], pl[2 * B + k], pl[3 * B + k], pl[4 * B + k])
+                store4(out, i, slerp_row(pi, qi, s, c, v, pl[5 * B + k], load1(t, i)))
 
 
 @rowloop(rows=2)

@@ -512,3 +512,28 @@ def test_unflip_tie_is_equivariant(seed):
     np.testing.assert_allclose(rel[:, 1:], [canonical_axis(TIE_AXES[i]) for i in idx], rtol=0, atol=1e-14)
     r = qa.random(rng=rng)
     np.testing.assert_allclose(qa.unflip(qa.multiply(r, q)), qa.multiply(r, u), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_slerp_shortest_unit_within_3_ulp(dtype):
+    """The pairs kernel's cheap tangent (m2 s − p2 d)/(2ab) for the common pairs (every
+    pair of shortest=True): unit within 3 ulp, random, nearly identical and nearly
+    antipodal pairs (flipped into nearly identical ones), t inside and outside [0, 1]."""
+    rng = np.random.default_rng(3)
+    eps = np.finfo(dtype).eps
+    p = qa.random(5000, rng=rng).astype(dtype)
+    worst = 0.0
+    for scale in [None, 0, 1e-16, 1e-12, 1e-8, 1e-4, 1e-2, 0.3]:
+        if scale is None:
+            q = qa.random(5000, rng=rng).astype(dtype)
+        else:
+            q = qa.normalize((p.astype(np.float64) + rng.normal(size=p.shape) * scale).astype(dtype))
+        for sign in (1, -1):
+            t = rng.uniform(-0.5, 1.5, len(p)).astype(dtype)
+            r = qa.slerp(p, sign * q, t)
+            worst = max(worst, np.abs(qa.norm(r.astype(np.float64)) - 1).max() / eps)
+            if dtype == np.float64:
+                u = qa.slerp(p, sign * q, t, shortest=False)  # the same arc where p·q > 0
+                keep = np.einsum("ij,ij->i", p, sign * q) > 0
+                assert np.array_equal(r[keep], u[keep])
+    assert worst <= 3, worst
