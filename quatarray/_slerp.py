@@ -128,13 +128,14 @@ def arc_fast(p, q, shortest):
     With s = p + sq and d = p − sq (sq = ±q as :func:`arc` flips it), m2 = |d|²,
     p2 = |s|², the tangent at p towards sq is (m2 s − p2 d)/(2ab) (a = |d|, b = |s|;
     orthogonal to p and of norm |q| exactly, for unit p). Its terms never cancel
-    (near θ = 0 both are of order a², near θ = π/2 of order 1), so it is unit and
-    orthogonal to p within a few ulp without the projection and the normalisation of
-    :func:`arc`, for every pair with θ ≤ π/2: all pairs of ``shortest=True``. The
-    rare ones (then not resolved here): θ > π/2 (p2 < m2: nearly antipodal pairs of
-    ``shortest=False``, where s is only as certain as its rounding and the tangent
-    must be projected), identical ends (m2 = 0), ties (|p·q| within the tie band:
-    the rule of :func:`flip_rule`) and nan."""
+    (near θ = 0 both are of order a², near θ = π/2 of order 1), so it is orthogonal
+    to p within a few ulp without the projection of :func:`arc`, and one Newton step
+    makes it unit (no square root), for every pair with θ ≤ π/2 (all pairs of ``shortest=True``) and up
+    to θ = 2 atan 4 (152°). The rare ones (then not resolved here): θ beyond that
+    (b < a/4: the nearly antipodal pairs of ``shortest=False``, where s is only as
+    certain as its rounding, which leaves the tangent off orthogonal to p by ε/b:
+    it must be projected), identical ends (m2 = 0), ties (|p·q| within the tie
+    band: the rule of :func:`flip_rule`) and nan."""
     dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
     d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
@@ -144,7 +145,8 @@ def arc_fast(p, q, shortest):
     flip = diff * shortest < zero
     m2 = select(flip, s2, d2)
     p2 = select(flip, d2, s2)
-    rare = ~(p2 >= m2) | ~(m2 > zero) | ((abs(diff) <= tie_band(d2) * (s2 + d2)) & (shortest > zero))
+    # θ > 2 atan 4 (152°: b < a/4, only with shortest=False), identical ends, ties, nan
+    rare = ~(like(d2, 16.0) * p2 >= m2) | ~(m2 > zero) | ((abs(diff) <= tie_band(d2) * (s2 + d2)) & (shortest > zero))
     sgn = like(d2, 2.0) * flip
     a = np.sqrt(m2)
     b = np.sqrt(p2)
@@ -154,7 +156,10 @@ def arc_fast(p, q, shortest):
     g0, g1, g2, g3 = select(flip, (sw, sx, sy, sz), (dw, dx, dy, dz))
     w = like(a, 1.0) / (like(a, 2.0) * a * b)
     v = ((m2 * e0 - p2 * g0) * w, (m2 * e1 - p2 * g1) * w, (m2 * e2 - p2 * g2) * w, (m2 * e3 - p2 * g3) * w)
-    return th, v, sgn, rare
+    # |v| = 1 within a few ulp (the roundings of a, b and w): one Newton step of the
+    # normalisation, v (3 − |v|²)/2, brings it within one, without a square root
+    f = like(a, 1.5) - like(a, 0.5) * qdot(v, v)
+    return th, (v[0] * f, v[1] * f, v[2] * f, v[3] * f), sgn, rare
 
 
 @traced

@@ -57,7 +57,7 @@ def _slerp(p, q, t, shortest, out):
     B = SLERP_BLOCK
     for blk in prange((n + ROWS - 1) // ROWS):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        pl = np.empty(7 * B, out.dtype)  # tθ then sin tθ, v (four planes), ±1, cos tθ
+        pl = np.empty(8 * B, out.dtype)  # tθ then sin tθ, v (four planes), ±1, cos tθ, rare (arc_fast)
         for sub in range(0, min(n - lo, ROWS), B):
             b0 = lo + sub
             m = min(n - b0, B)
@@ -70,19 +70,24 @@ def _slerp(p, q, t, shortest, out):
                 pl[3 * B + k] = v[2]
                 pl[4 * B + k] = v[3]
                 pl[5 * B + k] = like(th, 1.0) - sgn
+                pl[7 * B + k] = r
                 rare += r
-            if rare:  # the few pairs arc_fast leaves to arc (nearly antipodal, identical, ties, nan)
-                for k in range(m):
-                    pk = load4(p, b0 + k)
-                    qk = load4(q, b0 + k)
-                    if arc_fast(pk, qk, shortest)[3]:
-                        th, v, sgn = arc(pk, qk, shortest)
-                        pl[k] = load1(t, b0 + k) * th
-                        pl[B + k] = v[0]
-                        pl[2 * B + k] = v[1]
-                        pl[3 * B + k] = v[2]
-                        pl[4 * B + k] = v[3]
-                        pl[5 * B + k] = like(th, 1.0) - sgn
+            # the few pairs arc_fast leaves to arc (nearly antipodal, identical, ties, nan), found
+            # by a search loop: a plain loop over the block with a branch was if-converted by
+            # LLVM into SIMD code that ran arc on every row of the block
+            k = 0
+            while rare:
+                while pl[7 * B + k] == 0.0:
+                    k += 1
+                th, v, sgn = arc(load4(p, b0 + k), load4(q, b0 + k), shortest)
+                pl[k] = load1(t, b0 + k) * th
+                pl[B + k] = v[0]
+                pl[2 * B + k] = v[1]
+                pl[3 * B + k] = v[2]
+                pl[4 * B + k] = v[3]
+                pl[5 * B + k] = like(th, 1.0) - sgn
+                k += 1
+                rare -= 1
             for k in range(m):
                 pl[k], pl[6 * B + k] = sincos(pl[k])
             for k in range(m):
