@@ -20,7 +20,7 @@ import numpy as np
 from ._elements import qconj, qdot, qmul
 from ._jit import element, fmuladd, inline, like
 from ._trace import float_bits, select, traced
-from ._trig import half_arc, sincos
+from ._trig import atan2, half_arc, sincos
 
 
 TIE_64 = 2.0**-46  # the tie band of flip_rule: 64 ulp of 1
@@ -163,6 +163,17 @@ def arc_fast(p, q, shortest):
 
 
 @traced
+def fixed_arc(p, q):
+    """(θ, v) of the plain great arc from p to q as a spline's table holds it: :func:`arc_fast`,
+    or :func:`arc` for its rare pairs, both computed and one selected (for SIMD loops; a
+    scalar loop branches instead, with the same result)."""
+    zero = like(p[0], 0.0)
+    th, v, sgn, rare = arc_fast(p, q, zero)
+    th_x, v_x, sgn_x = arc(p, q, zero)
+    return select(rare, th_x, th), select(rare, v_x, v)
+
+
+@traced
 def slerp_row(p, q, s, c, v, k, t):
     """p cos tθ + v sin tθ from s, c = sin tθ, cos tθ; k·q (k = ±1, the sign of q on the
     arc) at t = 1 exactly (t = 0 is exact already: sincos(0) = (0, 1)). A select, not a
@@ -233,6 +244,34 @@ def controls4(qp, qn, qx, f_out, f_in):
     zero = like(f_out, 0.0)
     a0 = slerp4(qn, bisect4(double4(qp, qn), qx), like(f_out, 1.0) / like(f_out, 3.0), zero)
     return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
+
+
+@traced
+def log_unit(d):
+    """Log of a unit quaternion as the rotation-vector half (θ u/|u|, θ = atan2(|u|, w)),
+    its real part log|d| = 0 dropped; (π, 0, 0) for d = (−1, 0, 0, 0), as :func:`quatarray.log`."""
+    un = np.sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3])
+    zero = like(un, 0.0)
+    some = un > zero
+    f = atan2(un, d[0]) / select(some, un, like(un, 1.0))
+    pi = select(d[0] < zero, like(un, 3.141592653589793), zero)
+    return select(some, (f * d[1], f * d[2], f * d[3]), (pi, zero, zero))
+
+
+@traced
+def squad_inner4(qp, qn, qx):
+    """Shoemake's squad inner point of unit key qn between qp and qx:
+    qn ⊗ exp(−(log(qn* ⊗ qx) + log(qn* ⊗ qp))/4) (the logs of unit quaternions: no real part)."""
+    inv = qconj(qn)
+    a = log_unit(qmul(inv, qx))
+    b = log_unit(qmul(inv, qp))
+    h = like(a[0], -0.25)
+    x = ((a[0] + b[0]) * h, (a[1] + b[1]) * h, (a[2] + b[2]) * h)
+    n = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    s, c = sincos(n)
+    zero = like(n, 0.0)
+    f = select(n > zero, s / select(n > zero, n, like(n, 1.0)), like(n, 1.0))
+    return qmul(qn, (c, f * x[0], f * x[1], f * x[2]))
 
 
 @traced

@@ -56,7 +56,7 @@ from . import _elements as E
 from ._access import load1, load4, loads, store1, store4, stores
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
-from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
+from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
 from .interpolation import controls_bezier, controls_squad
@@ -120,7 +120,9 @@ def sign_summary(q, rows, ends, negated, unit, dots):
 @inline
 def put_arc(seg, n, c, p, q):
     """Table row n, columns c … c + 4: (θ, v) of the fixed arc from p to q (:func:`arc`)."""
-    th, v, sgn = arc(p, q, like(p[0], 0.0))
+    th, v, sgn, rare = arc_fast(p, q, like(p[0], 0.0))
+    if rare:  # nearly antipodal, identical or nan ends (the table's loop is scalar: a branch costs nothing)
+        th, v, sgn = arc(p, q, like(p[0], 0.0))
     stores(seg, NSEG * n + c, (th, v[0], v[1], v[2], v[3]))
 
 
