@@ -172,16 +172,6 @@ def fixed_arc(p, q):
 
 
 @traced
-def slerp_row(p, q, s, c, v, k, t):
-    """p cos tθ + v sin tθ from s, c = sin tθ, cos tθ; k·q (k = ±1, the sign of q on the
-    arc) at t = 1 exactly (t = 0 is exact already: sincos(0) = (0, 1)). A select, not a
-    branch, so that the row loop runs as SIMD code."""
-    r = (fmuladd(s, v[0], c * p[0]), fmuladd(s, v[1], c * p[1]), fmuladd(s, v[2], c * p[2]),
-         fmuladd(s, v[3], c * p[3]))
-    return select(t == like(t, 1.0), (k * q[0], k * q[1], k * q[2], k * q[3]), r)
-
-
-@traced
 def slerp4(p, q, t, shortest=0.0):
     """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
     hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at
