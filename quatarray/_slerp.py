@@ -22,7 +22,6 @@ from ._jit import element, fmuladd, inline, like
 from ._trace import float_bits, select, traced
 from ._trig import atan2, half_arc, sincos
 
-
 TIE_64 = 2.0**-46  # the tie band of flip_rule: 64 ulp of 1
 TIE_32 = 2.0**-17
 
@@ -166,8 +165,8 @@ def fixed_arc(p, q):
     or :func:`arc` for its rare pairs, both computed and one selected (for SIMD loops; a
     scalar loop branches instead, with the same result)."""
     zero = like(p[0], 0.0)
-    th, v, sgn, rare = arc_fast(p, q, zero)
-    th_x, v_x, sgn_x = arc(p, q, zero)
+    th, v, _, rare = arc_fast(p, q, zero)
+    th_x, v_x, _ = arc(p, q, zero)
     return select(rare, th_x, th), select(rare, v_x, v)
 
 

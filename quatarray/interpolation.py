@@ -23,7 +23,21 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
-from ._slerp import arc, arc_fast, bezier4, bisect4, controls4, double4, flip_rule, lerp4, nlerp4, squad4, squad_inner4, tie_band, unflip_sign
+from ._slerp import (
+    arc,
+    arc_fast,
+    bezier4,
+    bisect4,
+    controls4,
+    double4,
+    flip_rule,
+    lerp4,
+    nlerp4,
+    squad4,
+    squad_inner4,
+    tie_band,
+    unflip_sign,
+)
 from ._trig import sincos
 from ._validate import as_times, elementwise, key_array, key_times, scan
 

@@ -522,7 +522,8 @@ def _resample_cubic(t, nt, q, order):
     width = 3 if order else 4
     out = np.empty(flat_nt.shape[0] * width, q.dtype)
     if out.shape[0]:
-        _EVAL_CUBIC[order](t, flat_nt, (np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype).reshape(-1)), out)
+        data = (np.ascontiguousarray(q).reshape(-1), coef.astype(q.dtype, copy=False).reshape(-1))
+        _EVAL_CUBIC[order](t, flat_nt, data, out)
     return out.reshape(nt.shape + (width,))
 
 
