@@ -152,3 +152,21 @@ def test_cubic_and_slerp_equal_scipy_at_half_turns(times, keys):
     slerp = Slerp(np.asarray(times, float), Rotation.from_quat(keys, scalar_first=True))(nt)
     got = qa.spline(times, keys, nt, method="slerp")
     assert np.abs(qa.distance(got, slerp.as_quat(scalar_first=True))).max() < 1e-10
+
+
+@pytest.mark.parametrize("k", [2, 3, 4, 9, 300])
+def test_cubic_fused_setup_equals_numpy_setup(rng, k, monkeypatch):
+    """The set-up in kernels (many keys) and in numpy (fewer keys, no compiling) give the
+    same coefficients and passes (within rounding), ties and tiny steps included."""
+    keys = smooth_keys(rng, k, 0.4)
+    if k > 4:
+        keys[3] = qa.multiply(keys[2], [0.0, 0.0, 1.0, 0.0])  # a half turn
+        keys[5] = keys[4]  # no turn
+    keys = qa.unflip(keys)
+    t = np.cumsum(rng.uniform(0.2, 2.0, k))
+    coef = {}
+    for name, keys_from in (("fused", 0), ("numpy", 10**9)):
+        monkeypatch.setattr(_cubic, "FUSED_MIN_KEYS", keys_from)
+        coef[name] = _cubic.coefficients(t, keys)
+    assert coef["fused"][1] == coef["numpy"][1]
+    np.testing.assert_allclose(coef["fused"][0], coef["numpy"][0], rtol=1e-13, atol=1e-13)
