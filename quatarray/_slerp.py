@@ -76,8 +76,8 @@ def arc(p, q, shortest):
     flag: a runtime boolean in the loop keeps LLVM from vectorising); the flip
     costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|) ∈ [0, π]
     from the chords a = |p − sq|, b = |p + sq|; v is the unit tangent at p
-    towards sq: |p − sq|²(p + sq) − |p + sq|²(p − sq) (see :func:`arc_fast`), made
-    orthogonal to p once more and normalised (never divided by sin θ). Near θ = π (b of a few
+    towards sq: sq − p cos θ (cos θ = (b² − a²)/(a² + b²)), made orthogonal to
+    p once more and normalised (never divided by sin θ). Near θ = π (b of a few
     ulp) its direction is only as certain as p + sq, but it stays a unit
     tangent, so slerp stays unit for every pair and every t.
     Where no tangent is left (identical or antipodal ends) v = p ⊗ i: an
@@ -100,20 +100,22 @@ def arc(p, q, shortest):
     b = np.sqrt(p2)
     two = like(a, 2.0)
     th = two * half_arc(a, b)
-    # the tangent m2 (p + sq) − p2 (p − sq) of arc_fast (of norm 2ab|q|, no division), made
-    # orthogonal to p once more and normalised
-    e0, e1, e2, e3 = select(flip, (dw, dx, dy, dz), (sw, sx, sy, sz))
-    g0, g1, g2, g3 = select(flip, (sw, sx, sy, sz), (dw, dx, dy, dz))
-    v0, v1, v2, v3 = m2 * e0 - p2 * g0, m2 * e1 - p2 * g1, m2 * e2 - p2 * g2, m2 * e3 - p2 * g3
+    c = (p2 - m2) / (m2 + p2)  # cos θ
+    k = one - sgn  # ±1: the sign of q on the arc
+    v0 = k * q[0] - c * p[0]
+    v1 = k * q[1] - c * p[1]
+    v2 = k * q[2] - c * p[2]
+    v3 = k * q[3] - c * p[3]
     e = p[0] * v0 + p[1] * v1 + p[2] * v2 + p[3] * v3
     v0, v1, v2, v3 = v0 - e * p[0], v1 - e * p[1], v2 - e * p[2], v3 - e * p[3]
     n2 = v0 * v0 + v1 * v1 + v2 * v2 + v3 * v3
     nv = one / np.sqrt(n2)
     v = (v0 * nv, v1 * nv, v2 * nv, v3 * nv)
-    # no tangent left (|v| ≤ half its norm 2ab: rounding only): identical ends (any unit
+    st = two * a * b / (m2 + p2)  # sin θ
+    # no tangent left (|v| ≤ sin θ / 2: rounding only): identical ends (any unit
     # tangent: sin tθ = 0) or antipodal ones, also p + sq parallel to p (sq a
     # scaled −p)
-    v = select(n2 <= m2 * p2, (-p[1], p[0], p[3], -p[2]), v)
+    v = select(n2 <= like(a, 0.25) * st * st, (-p[1], p[0], p[3], -p[2]), v)
     return th, v, sgn
 
 
