@@ -145,15 +145,11 @@ def _segments(q, c_out, c_in, seg):
         stores(seg, NSEG * n + 4, a)
         stores(seg, NSEG * n + 8, b)
         stores(seg, NSEG * n + 12, r)
-        if KIND == 1:
-            put_arc(seg, n, 16, p, a)
-            put_arc(seg, n, 21, a, b)
-            put_arc(seg, n, 26, b, r)
-        if KIND == 2:
-            put_arc(seg, n, 16, p, r)
-            put_arc(seg, n, 21, a, b)
-        if KIND == 0:
-            put_arc(seg, n, 16, p, r)
+        # the fixed arcs, in a loop: one inlined copy of put_arc (arc_fast and arc), not three
+        for k in range(3 if KIND == 1 else 2 if KIND == 2 else 1 if KIND == 0 else 0):
+            c0 = NSEG * n + 4 * k  # from quaternion k of the row to quaternion k + 1 (Bézier) or 3 − k
+            c1 = NSEG * n + (4 * k + 4 if KIND == 1 else 12 - 4 * k)
+            put_arc(seg, n, 16 + 5 * k, loads(seg, c0, 4), loads(seg, c1, 4))
 
 
 @inline
