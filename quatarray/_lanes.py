@@ -12,7 +12,7 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, store1
 from ._jit import inline, kernel, like, prange, rowloop, specialise
-from ._slerp import arc, arc_slerp, bezier_seg, bisect4, controls4, double4, nlerp4, slerp4
+from ._slerp import arc_slerp, bezier_seg, bisect4, controls4, double4, fixed_arc, nlerp4, slerp4, squad_inner4, unflip_sign
 from .interpolation import tangent_scales
 from .splines import BLOCK, TABLED, next_run, resample_unit, unit_keys
 
@@ -73,7 +73,7 @@ def _gather_unit(p, cols, out):
                 if s < cols.shape[0]:
                     j = cols[s]
                     r = E.qnormalize((p[k, j, 0], p[k, j, 1], p[k, j, 2], p[k, j, 3]))
-                    if k > 0 and E.qdot(r, load_lane(out, b - G4, l)) < zero:
+                    if k > 0 and unflip_sign(load_lane(out, b - G4, l), r) < zero:
                         r = E.qneg(r)
                 else:
                     r = (one, zero, zero, zero)
@@ -134,24 +134,18 @@ def _lane_bezier_controls(q, f_out, f_in, a, b):
 def _lane_squad_controls(q, nk, s):
     """:func:`quatarray.interpolation.squad_controls` of every lane (`s` a copy of `q`)."""
     ng = q.shape[0] // (nk * G4)
-    quarter = like(q, -0.25)
     for i in prange(ng * (nk - 2)):
         g = i // (nk - 2)
         n = i - g * (nk - 2) + 1
         c = (g * nk + n) * G4
-        for l in range(LANES):
-            qn = load_lane(q, c, l)
-            inv = E.qconj(qn)
-            x = E.qlog(E.qmul(inv, load_lane(q, c + G4, l)))
-            y = E.qlog(E.qmul(inv, load_lane(q, c - G4, l)))
-            store_lane(s, c, l, E.qmul(qn, E.qexp(((x[0] + y[0]) * quarter, (x[1] + y[1]) * quarter,
-                                             (x[2] + y[2]) * quarter, (x[3] + y[3]) * quarter))))
+        for l in range(LANES):  # SIMD over lanes
+            store_lane(s, c, l, squad_inner4(load_lane(q, c - G4, l), load_lane(q, c, l), load_lane(q, c + G4, l)))
 
 
 @inline
 def put_lane_arc(arcs, c, l, p, q):
     """(θ, v) of the fixed arc p → q (as the table's ``put_arc``) at rows c … c + 4 of lane l."""
-    th, v, sgn = arc(p, q, like(p[0], 0.0))
+    th, v = fixed_arc(p, q)  # as splines.put_arc
     store1(arcs, c * LANES + l, th)
     store1(arcs, (c + 1) * LANES + l, v[0])
     store1(arcs, (c + 2) * LANES + l, v[1])

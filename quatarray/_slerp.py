@@ -17,17 +17,62 @@ convention of :func:`quatarray.power`.
 
 import numpy as np
 
-from ._elements import qdot
+from ._elements import qconj, qdot, qmul
 from ._jit import element, fmuladd, inline, like
-from ._trace import select, traced
-from ._trig import half_arc, sincos
+from ._trace import float_bits, select, traced
+from ._trig import atan2, half_arc, sincos
+
+TIE_64 = 2.0**-46  # the tie band of flip_rule: 64 ulp of 1
+TIE_32 = 2.0**-17
+
+
+@traced
+def tie_band(x):
+    """TIE of x's float type (see the module docstring)."""
+    return like(x, TIE_32 if float_bits(x) == 32 else TIE_64)
+
+
+@traced
+def flip_rule(p, q, d, tol, tol_v):
+    """(flip, chain) for q after p, given d (p·q, or 4p·q = |p + q|² − |p − q|²), tol
+    the tie band on d's scale and tol_v on p·q's (TIE·(|p|² + |q|²)/2: what a
+    component of D = p* ⊗ q may be and still count as 0).
+
+    flip: q goes into p's hemisphere: d < −tol, or a tie (|d| ≤ tol) whose D has
+    a negative first non-negligible x, y, z (scipy's canonical rule for w = 0).
+    Negating p or q negates d and D, so negates flip.
+    chain: false only where nothing decides (a zero or nan row): flip is then
+    false whatever the signs, so a sign carried along a stream stops there."""
+    dv = qmul(qconj(p), q)
+    x, y, z = dv[1], dv[2], dv[3]
+    bx = abs(x) > tol_v
+    by = abs(y) > tol_v
+    f = select(bx, x, select(by, y, z))
+    zero = like(d, 0.0)
+    below = d < -tol
+    flip = below | ((abs(d) <= tol) & (f < zero))
+    chain = below | (d > tol) | bx | by | (abs(z) > tol_v)
+    return flip, chain
+
+
+@traced
+def unflip_sign(p, q):
+    """What :func:`quatarray.unflip` does to q after p (as it stands): −1 negate (p·q < 0,
+    or the tie rule of :func:`flip_rule`), 1 keep, 0 keep whatever the signs (a zero or
+    nan row: a sign carried along the stream stops there). Negating p or q negates a
+    non-zero sign."""
+    tol = tie_band(p[0]) * like(p[0], 0.5) * (qdot(p, p) + qdot(q, q))
+    flip, chain = flip_rule(p, q, qdot(q, p), tol, tol)
+    one = like(p[0], 1.0)
+    return select(chain, select(flip, -one, one), like(p[0], 0.0))
 
 
 @traced
 def arc(p, q, shortest):
     """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
 
-    f = 2 when p·q < 0 and `shortest` is 1.0, else 0 (`shortest` is a float
+    f = 2 when `shortest` is 1.0 and :func:`flip_rule` flips q (p·q < 0, or the
+    tie rule), else 0 (`shortest` is a float
     flag: a runtime boolean in the loop keeps LLVM from vectorising); the flip
     costs nothing: |p ∓ q| just swap. θ = 2 atan2(|p − sq|, |p + sq|) ∈ [0, π]
     from the chords a = |p − sq|, b = |p + sq|; v is the unit tangent at p
@@ -42,7 +87,9 @@ def arc(p, q, shortest):
     sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
     d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
     s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
-    flip = (s2 - d2) * shortest < like(d2, 0.0)  # 4 p·q = |p+q|² − |p−q|²
+    # 4 p·q = |p+q|² − |p−q|², the tie band on the scale of 2(|p|² + |q|²) = s2 + d2
+    tol = tie_band(d2) * (s2 + d2)
+    flip = flip_rule(p, q, s2 - d2, tol, like(d2, 0.25) * tol)[0] & (shortest > like(d2, 0.0))
     m2 = select(flip, s2, d2)
     p2 = select(flip, d2, s2)
     # 2 when flipped, else 0, converted from the boolean (a select or copysign
@@ -70,6 +117,59 @@ def arc(p, q, shortest):
     # scaled −p)
     v = select(n2 <= like(a, 0.25) * st * st, (-p[1], p[0], p[3], -p[2]), v)
     return th, v, sgn
+
+
+@traced
+def arc_fast(p, q, shortest):
+    """(θ, v, f, rare): :func:`arc` for the common pairs, with a cheaper tangent, and
+    whether the pair is a rare one that needs :func:`arc` itself.
+
+    With s = p + sq and d = p − sq (sq = ±q as :func:`arc` flips it), m2 = |d|²,
+    p2 = |s|², the tangent at p towards sq is (m2 s − p2 d)/(2ab) (a = |d|, b = |s|;
+    orthogonal to p and of norm |q| exactly, for unit p). Its terms never cancel
+    (near θ = 0 both are of order a², near θ = π/2 of order 1), so it is orthogonal
+    to p within a few ulp without the projection of :func:`arc`, and one Newton step
+    makes it unit (no square root), for every pair with θ ≤ π/2 (all pairs of ``shortest=True``) and up
+    to θ = 2 atan 4 (152°). The rare ones (then not resolved here): θ beyond that
+    (b < a/4: the nearly antipodal pairs of ``shortest=False``, where s is only as
+    certain as its rounding, which leaves the tangent off orthogonal to p by ε/b:
+    it must be projected), identical ends (m2 = 0), ties (|p·q| within the tie
+    band: the rule of :func:`flip_rule`) and nan."""
+    dw, dx, dy, dz = p[0] - q[0], p[1] - q[1], p[2] - q[2], p[3] - q[3]
+    sw, sx, sy, sz = p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]
+    d2 = fmuladd(dw, dw, dx * dx) + fmuladd(dy, dy, dz * dz)
+    s2 = fmuladd(sw, sw, sx * sx) + fmuladd(sy, sy, sz * sz)
+    zero = like(d2, 0.0)
+    diff = s2 - d2  # 4 p·q
+    flip = diff * shortest < zero
+    m2 = select(flip, s2, d2)
+    p2 = select(flip, d2, s2)
+    # θ > 2 atan 4 (152°: b < a/4, only with shortest=False), identical ends, ties, nan
+    rare = ~(like(d2, 16.0) * p2 >= m2) | ~(m2 > zero) | ((abs(diff) <= tie_band(d2) * (s2 + d2)) & (shortest > zero))
+    sgn = like(d2, 2.0) * flip
+    a = np.sqrt(m2)
+    b = np.sqrt(p2)
+    th = like(a, 2.0) * half_arc(a, b)
+    # s and d of sq: swapped (and d negated) when q is flipped
+    e0, e1, e2, e3 = select(flip, (dw, dx, dy, dz), (sw, sx, sy, sz))
+    g0, g1, g2, g3 = select(flip, (sw, sx, sy, sz), (dw, dx, dy, dz))
+    w = like(a, 1.0) / (like(a, 2.0) * a * b)
+    v = ((m2 * e0 - p2 * g0) * w, (m2 * e1 - p2 * g1) * w, (m2 * e2 - p2 * g2) * w, (m2 * e3 - p2 * g3) * w)
+    # |v| = 1 within a few ulp (the roundings of a, b and w): one Newton step of the
+    # normalisation, v (3 − |v|²)/2, brings it within one, without a square root
+    f = like(a, 1.5) - like(a, 0.5) * qdot(v, v)
+    return th, (v[0] * f, v[1] * f, v[2] * f, v[3] * f), sgn, rare
+
+
+@traced
+def fixed_arc(p, q):
+    """(θ, v) of the plain great arc from p to q as a spline's table holds it: :func:`arc_fast`,
+    or :func:`arc` for its rare pairs, both computed and one selected (for SIMD loops; a
+    scalar loop branches instead, with the same result)."""
+    zero = like(p[0], 0.0)
+    th, v, _, rare = arc_fast(p, q, zero)
+    th_x, v_x, _ = arc(p, q, zero)
+    return select(rare, th_x, th), select(rare, v_x, v)
 
 
 @traced
@@ -133,6 +233,34 @@ def controls4(qp, qn, qx, f_out, f_in):
     zero = like(f_out, 0.0)
     a0 = slerp4(qn, bisect4(double4(qp, qn), qx), like(f_out, 1.0) / like(f_out, 3.0), zero)
     return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
+
+
+@traced
+def log_unit(d):
+    """Log of a unit quaternion as the rotation-vector half (θ u/|u|, θ = atan2(|u|, w)),
+    its real part log|d| = 0 dropped; (π, 0, 0) for d = (−1, 0, 0, 0), as :func:`quatarray.log`."""
+    un = np.sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3])
+    zero = like(un, 0.0)
+    some = un > zero
+    f = atan2(un, d[0]) / select(some, un, like(un, 1.0))
+    pi = select(d[0] < zero, like(un, 3.141592653589793), zero)
+    return select(some, (f * d[1], f * d[2], f * d[3]), (pi, zero, zero))
+
+
+@traced
+def squad_inner4(qp, qn, qx):
+    """Shoemake's squad inner point of unit key qn between qp and qx:
+    qn ⊗ exp(−(log(qn* ⊗ qx) + log(qn* ⊗ qp))/4) (the logs of unit quaternions: no real part)."""
+    inv = qconj(qn)
+    a = log_unit(qmul(inv, qx))
+    b = log_unit(qmul(inv, qp))
+    h = like(a[0], -0.25)
+    x = ((a[0] + b[0]) * h, (a[1] + b[1]) * h, (a[2] + b[2]) * h)
+    n = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    s, c = sincos(n)
+    zero = like(n, 0.0)
+    f = select(n > zero, s / select(n > zero, n, like(n, 1.0)), like(n, 1.0))
+    return qmul(qn, (c, f * x[0], f * x[1], f * x[2]))
 
 
 @traced

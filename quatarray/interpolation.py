@@ -23,7 +23,21 @@ import numpy as np
 from . import _elements as E
 from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
-from ._slerp import arc, bezier4, bisect4, controls4, double4, lerp4, nlerp4, squad4
+from ._slerp import (
+    arc,
+    arc_fast,
+    bezier4,
+    bisect4,
+    controls4,
+    double4,
+    flip_rule,
+    lerp4,
+    nlerp4,
+    squad4,
+    squad_inner4,
+    tie_band,
+    unflip_sign,
+)
 from ._trig import sincos
 from ._validate import as_times, elementwise, key_array, key_times, scan
 
@@ -57,11 +71,28 @@ def _slerp(p, q, t, shortest, out):
     B = SLERP_BLOCK
     for blk in prange((n + ROWS - 1) // ROWS):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        pl = np.empty(7 * B, out.dtype)  # tθ then sin tθ, v (four planes), ±1, cos tθ
+        pl = np.empty(8 * B, out.dtype)  # tθ then sin tθ, v (four planes), ±1, cos tθ, rare (arc_fast)
         for sub in range(0, min(n - lo, ROWS), B):
             b0 = lo + sub
             m = min(n - b0, B)
+            rare = 0
             for k in range(m):
+                th, v, sgn, r = arc_fast(load4(p, b0 + k), load4(q, b0 + k), shortest)
+                pl[k] = load1(t, b0 + k) * th
+                pl[B + k] = v[0]
+                pl[2 * B + k] = v[1]
+                pl[3 * B + k] = v[2]
+                pl[4 * B + k] = v[3]
+                pl[5 * B + k] = like(th, 1.0) - sgn
+                pl[7 * B + k] = r
+                rare += r
+            # the few pairs arc_fast leaves to arc (nearly antipodal, identical, ties, nan), found
+            # by a search loop: a plain loop over the block with a branch was if-converted by
+            # LLVM into SIMD code that ran arc on every row of the block
+            k = 0
+            while rare:
+                while pl[7 * B + k] == 0.0:
+                    k += 1
                 th, v, sgn = arc(load4(p, b0 + k), load4(q, b0 + k), shortest)
                 pl[k] = load1(t, b0 + k) * th
                 pl[B + k] = v[0]
@@ -69,6 +100,8 @@ def _slerp(p, q, t, shortest, out):
                 pl[3 * B + k] = v[2]
                 pl[4 * B + k] = v[3]
                 pl[5 * B + k] = like(th, 1.0) - sgn
+                k += 1
+                rare -= 1
             for k in range(m):
                 pl[k], pl[6 * B + k] = sincos(pl[k])
             for k in range(m):
@@ -79,7 +112,10 @@ def _slerp(p, q, t, shortest, out):
                 c = pl[6 * B + k]
                 r = (fmuladd(s, pl[B + k], c * pi[0]), fmuladd(s, pl[2 * B + k], c * pi[1]),
                      fmuladd(s, pl[3 * B + k], c * pi[2]), fmuladd(s, pl[4 * B + k], c * pi[3]))
-                if load1(t, i) == like(s, 1.0):  # exact end (t = 0 is exact: sincos(0) = (0, 1))
+                # exact end (t = 0 is exact: sincos(0) = (0, 1)); a branch, which LLVM leaves
+                # scalar: the SIMD select of slerp_row ran 1.17x faster in cache but 0.8x at
+                # 2·10⁶ rows (from memory)
+                if load1(t, i) == like(s, 1.0):
                     sq = pl[5 * B + k]
                     r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
                 store4(out, i, r)
@@ -97,8 +133,10 @@ def _nlerp(p, q, t, shortest, out):
             qi = load4(q, i)
             d = pi[0] * qi[0] + pi[1] * qi[1] + pi[2] * qi[2] + pi[3] * qi[3]
             s = like(ti, 1.0) - ti
+            tol = tie_band(ti) * like(ti, 0.5) * (E.qdot(pi, pi) + E.qdot(qi, qi))
+            flip = flip_rule(pi, qi, d, tol, tol)[0] & (shortest > like(ti, 0.0))  # the tie rule of _slerp
             # −t when q is flipped into p's hemisphere; 0 or 2 from the boolean (no select)
-            ts = ti - like(ti, 2.0) * (d * shortest < like(ti, 0.0)) * ti
+            ts = ti - like(ti, 2.0) * flip * ti
             store4(out, i, nlerp4(pi, qi, s, ts))
 
 
@@ -114,6 +152,19 @@ def _lerp(p, q, t, out):
             qi = load4(q, i)
             s = like(ti, 1.0) - ti
             store4(out, i, lerp4(pi, qi, s, ti))
+
+
+@rowloop
+def _unflip_signs(p, q, out):
+    """:func:`quatarray._slerp.unflip_sign` of rows (for the Dask sign scans)."""
+    for i in prange(p.shape[0]):
+        out[i] = unflip_sign(load4(p, i), load4(q, i))
+
+
+def unflip_signs(p, q):
+    """What :func:`unflip` does to each row of `q` after the row of `p`, shape (...):
+    −1 negate, 1 keep, 0 keep whatever the signs (`q` or `p` a zero or nan row)."""
+    return elementwise(_unflip_signs, [(p, "p", Q), (q, "q", Q)], [()])
 
 
 @rowloop
@@ -197,7 +248,7 @@ def _unflip(q, out):
         out[0, m, 0], out[0, m, 1], out[0, m, 2], out[0, m, 3] = prev
         for k in range(1, q.shape[0]):
             cur = (q[k, m, 0], q[k, m, 1], q[k, m, 2], q[k, m, 3])
-            if E.qdot(cur, prev) < like(q, 0.0):
+            if unflip_sign(prev, cur) < like(q, 0.0):
                 cur = E.qneg(cur)
             out[k, m, 0], out[k, m, 1], out[k, m, 2], out[k, m, 3] = cur
             prev = cur
@@ -282,7 +333,8 @@ def lerp(p, q, t, out=None):
 def nlerp(p, q, t, shortest=True, out=None):
     """Normalised linear blend ((1 − t) p + t q)/|…|.
 
-    With ``shortest=True`` q is first flipped into p's hemisphere (p·q ≥ 0).
+    With ``shortest=True`` q is first flipped into p's hemisphere (p·q ≥ 0; a
+    pair a half turn apart, p·q = 0, by the tie rule of :func:`slerp`).
 
     Examples
     --------
@@ -323,6 +375,13 @@ def slerp(p, q, t, shortest=True, out=None):
     antipodal inputs; about one ulp from the exact result in float64. Exactly
     antipodal p = −q with ``shortest=False`` has no unique arc and follows
     p ⊗ (cos tπ, sin tπ, 0, 0).
+
+    A pair a half turn apart (p·q = 0, within 64 ulp: both arcs are equally
+    short) takes the arc scipy's ``Slerp`` takes for an exact tie: q is flipped
+    when the first non-negligible x, y, z of the relative rotation p* ⊗ q is
+    negative. The rule depends on p* ⊗ q only, so
+    ``slerp(r ⊗ p, r ⊗ q, t)`` is ``r ⊗ slerp(p, q, t)`` for any rotation r,
+    whatever sign rounding gives (r ⊗ p)·(r ⊗ q).
 
     Examples
     --------
@@ -488,15 +547,15 @@ def controls_squad(q):
 
 @rowloop
 def _squad_inner(q, s):
-    """Rows 1 … K−2 of :func:`squad_controls` (one kernel: no temporaries)."""
-    quarter = like(q, -0.25)
-    for n in prange(1, q.shape[0] - 1):
-        qn = E.load4(q, n)
-        inv = E.qconj(qn)
-        a = E.qlog(E.qmul(inv, E.load4(q, n + 1)))
-        b = E.qlog(E.qmul(inv, E.load4(q, n - 1)))
-        E.store4(s, n, E.qmul(qn, E.qexp(((a[0] + b[0]) * quarter, (a[1] + b[1]) * quarter,
-                                           (a[2] + b[2]) * quarter, (a[3] + b[3]) * quarter))))
+    """Rows 1 … K−2 of :func:`squad_controls` (one kernel: no temporaries), in blocks of
+    ROWS rows whose plain inner loop runs as SIMD code (the logs and the exp of unit
+    quaternions by the branch-free trigonometry: 4x the libm-based loop)."""
+    n = q.shape[0] - 2
+    for blk in prange((n + ROWS - 1) // ROWS):
+        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
+        for k in range(min(n - lo, ROWS)):
+            i = lo + k + 1
+            store4(s, i, squad_inner4(load4(q, i - 1), load4(q, i), load4(q, i + 1)))
 
 
 def squad(q0, s0, s1, q1, t, out=None):
@@ -520,6 +579,13 @@ def squad(q0, s0, s1, q1, t, out=None):
 def unflip(q, axis=0):
     """Sign continuity along a stream: q[i] is negated when its dot product with
     q[i−1] (already processed) is negative. Rotations are unchanged.
+
+    A tie (q[i] a half turn from q[i−1]: dot product 0, to 64 ulp) is resolved by
+    the relative rotation D = q[i−1]* ⊗ q[i], as scipy resolves it: q[i] is
+    negated when the first non-negligible of D's x, y, z is negative (see
+    :mod:`quatarray._slerp`). The rule depends on D only, so
+    ``unflip(R ⊗ q)`` is ``R ⊗ unflip(q)`` for any rotation R (to rounding).
+    A zero or nan row is kept as it is, and so is the row after it.
 
     `axis` counts the leading (non-quaternion) axes. Returns a new array.
 

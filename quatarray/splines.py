@@ -59,7 +59,7 @@ from . import _elements as E
 from ._access import load1, load4, loads, store1, store4, stores
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
-from ._slerp import arc, arc_slerp, bezier_seg, nlerp4, slerp4
+from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
 from .interpolation import controls_bezier, controls_squad
@@ -80,11 +80,12 @@ def sign_summary(q, rows, ends, negated, unit, dots):
     sees them (normalised, then unflipped from the block's first row), without
     writing the block: ``ends`` = its first and last rows, ``negated[j]`` whether
     row ``rows[j]`` (ascending) was negated. Returns how many leading rows a sign
-    carried into the block reaches: up to the first row whose dot product with the
-    row before is 0 or nan (that row is kept as it is whatever came before).
+    carried into the block reaches: up to the first row whose unflip sign
+    (:func:`quatarray._slerp.unflip_sign`) is 0: a nan row or the row after it (that
+    row is kept as it is whatever came before).
 
-    A negated row only negates its dot products with its neighbours (exactly), so
-    the rows are normalised into `unit` and their dot products found into `dots`,
+    A negated row only negates its unflip signs with its neighbours (exactly), so
+    the rows are normalised into `unit` and their signs found into `dots`,
     ``len(dots)`` at a time (loops free of the sign chain, which LLVM vectorises;
     ``len(unit) == len(dots) + 1``), then the chain runs over their signs."""
     zero = like(ends, 0.0)
@@ -102,9 +103,9 @@ def sign_summary(q, rows, ends, negated, unit, dots):
         for k in range(m):
             E.store4(unit, k + 1, E.qnormalize(E.load4(q, base + k)))
         for k in range(m):
-            dots[k] = E.qdot(E.load4(unit, k + 1), E.load4(unit, k))
+            dots[k] = unflip_sign(E.load4(unit, k), E.load4(unit, k + 1))
         for k in range(m):
-            d = -dots[k] if neg else dots[k]  # as _unflip: the dot product with the row before as it stands
+            d = -dots[k] if neg else dots[k]  # as _unflip: the sign after the row before as it stands
             if reach == n and not (d < zero or d > zero):
                 reach = base + k
             neg = d < zero
@@ -122,7 +123,9 @@ def sign_summary(q, rows, ends, negated, unit, dots):
 @inline
 def put_arc(seg, n, c, p, q):
     """Table row n, columns c … c + 4: (θ, v) of the fixed arc from p to q (:func:`arc`)."""
-    th, v, sgn = arc(p, q, like(p[0], 0.0))
+    th, v, sgn, rare = arc_fast(p, q, like(p[0], 0.0))
+    if rare:  # nearly antipodal, identical or nan ends (the table's loop is scalar: a branch costs nothing)
+        th, v, sgn = arc(p, q, like(p[0], 0.0))
     stores(seg, NSEG * n + c, (th, v[0], v[1], v[2], v[3]))
 
 
@@ -145,15 +148,11 @@ def _segments(q, c_out, c_in, seg):
         stores(seg, NSEG * n + 4, a)
         stores(seg, NSEG * n + 8, b)
         stores(seg, NSEG * n + 12, r)
-        if KIND == 1:
-            put_arc(seg, n, 16, p, a)
-            put_arc(seg, n, 21, a, b)
-            put_arc(seg, n, 26, b, r)
-        if KIND == 2:
-            put_arc(seg, n, 16, p, r)
-            put_arc(seg, n, 21, a, b)
-        if KIND == 0:
-            put_arc(seg, n, 16, p, r)
+        # the fixed arcs, in a loop: one inlined copy of put_arc (arc_fast and arc), not three
+        for k in range(3 if KIND == 1 else 2 if KIND == 2 else 1 if KIND == 0 else 0):
+            c0 = NSEG * n + 4 * k  # from quaternion k of the row to quaternion k + 1 (Bézier) or 3 − k
+            c1 = NSEG * n + (4 * k + 4 if KIND == 1 else 12 - 4 * k)
+            put_arc(seg, n, 16 + 5 * k, loads(seg, c0, 4), loads(seg, c1, 4))
 
 
 @inline
@@ -527,7 +526,7 @@ def cubic_curve(t, q):
     ``resample --method cubic``): the system over all keys is solved once."""
     coef, _ = _cubic.coefficients(t, q)
     flat_q = np.ascontiguousarray(q).reshape(-1)
-    flat_c = coef.astype(q.dtype).reshape(-1)
+    flat_c = coef.astype(q.dtype, copy=False).reshape(-1)
 
     def at(nt, order=0):
         flat_nt = np.ascontiguousarray(nt.reshape(-1))
@@ -679,8 +678,9 @@ UNIT_BLOCK = 256  # rows of _unit_unflip's block: its normalised rows stay in L1
 @kernel
 def _unit_unflip(p, out, a, flip0):
     """Rows a … a + len(p) − 1 of `out`: the rows of `p` normalised (:func:`quatarray.normalize`),
-    each negated when its dot product with the row before in `out` is negative (as
-    :func:`unflip`); the first row of `out` is negated instead when `flip0`.
+    each negated when :func:`unflip` would negate it after the row before in `out`
+    (:func:`quatarray._slerp.unflip_sign`: a negative dot product, or the tie rule);
+    the first row of `out` is negated instead when `flip0`.
 
     Block by block: a loop free of the sign chain normalises the rows (LLVM
     vectorises it); then the sign chain runs over their dot products with the unit
@@ -695,6 +695,8 @@ def _unit_unflip(p, out, a, flip0):
     zero = like(out, 0.0)
     one = like(out, 1.0)
     neg = False  # whether the row before, as it stands in `out`, is its unit row negated
+    # the sign of unflip_sign (−1 negate, 1 keep, 0: a zero or nan row) in place of the
+    # dot product's (the tie rule of quatarray._slerp)
     for base in range(0, p.shape[0], UNIT_BLOCK):
         m = min(UNIT_BLOCK, p.shape[0] - base)
         i0 = a + base
@@ -704,14 +706,14 @@ def _unit_unflip(p, out, a, flip0):
         if i0 == 0:
             neg = flip0
         else:  # the row before is final: compare with it as it stands
-            neg = E.qdot(r, E.load4(out, i0 - 1)) < zero
+            neg = unflip_sign(E.load4(out, i0 - 1), r) < zero
         if neg:
             E.store4(out, i0, E.qneg(r))
         for k in range(1, m):
             u = E.load4(out, i0 + k)
-            # the dot product with the row before as it stands is ±d: negative when
-            # d < 0 and that row kept, or d > 0 and that row negated; 0 or nan never
-            d = E.qdot(u, r)
+            # the sign after the row before as it stands is ±d: negative when
+            # d < 0 and that row kept, or d > 0 and that row negated; 0 never
+            d = unflip_sign(r, u)
             neg = (neg & ((d < zero) | (d > zero))) != (d < zero)
             f = -one if neg else one
             E.store4(out, i0 + k, (f * u[0], f * u[1], f * u[2], f * u[3]))

@@ -123,3 +123,50 @@ def test_cubic_shapes_and_empty(rng):
                                   qa.spline(t, keys, nt.reshape(-1), method="cubic", order=1))
     assert qa.spline(t, keys, np.empty(0), method="cubic").shape == (0, 4)
     assert qa.spline(t, keys, np.empty(0), method="cubic", order=1).shape == (0, 3)
+
+
+TIE_KEYS = [
+    # identity -> 180° about x -> identity: scipy keeps turning one way (a full spin)
+    ([0, 1, 2], [[1, 0, 0, 0], [0, 1, 0, 0], [1, 0, 0, 0]]),
+    ([0, 1, 2, 3.5, 4], [[1, 0, 0, 0], [0, 0, 1, 0], [1, 0, 0, 0], [0, 0, 1, 0], [0.5, 0.5, 0.5, 0.5]]),
+    ([0, 0.5, 2, 3], [[1, 0, 0, 0], [0, 0, 0, -1], [-1, 0, 0, 0], [0, 0, 0.6, 0.8]]),
+    ([0, 1, 2, 3], [[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1], [1, 0, 0, 0]]),  # every step a half turn
+    ([0, 1, 3], [[0.5, 0.5, 0.5, 0.5], [-0.5, 0.5, -0.5, 0.5], [0.5, 0.5, 0.5, 0.5]]),
+]
+
+
+@pytest.mark.parametrize("times, keys", TIE_KEYS)
+def test_cubic_and_slerp_equal_scipy_at_half_turns(times, keys):
+    """Keys a half turn apart (p·q = 0) follow scipy's tie rule (the relative rotation's
+    canonical axis): issue 36 item 3, where "cubic" and "slerp" turned back."""
+    from scipy.spatial.transform import Slerp
+
+    keys = np.array(keys, float)
+    nt = np.linspace(times[0], times[-1], 97)
+    ref = scipy_spline(times, keys)
+    got = qa.spline(times, keys, nt, method="cubic")
+    assert np.abs(qa.distance(got, ref(nt).as_quat(scalar_first=True))).max() < 1e-10
+    for order in (1, 2):
+        np.testing.assert_allclose(qa.spline(times, keys, nt, method="cubic", order=order), ref(nt, order),
+                                   rtol=0, atol=1e-10)
+    slerp = Slerp(np.asarray(times, float), Rotation.from_quat(keys, scalar_first=True))(nt)
+    got = qa.spline(times, keys, nt, method="slerp")
+    assert np.abs(qa.distance(got, slerp.as_quat(scalar_first=True))).max() < 1e-10
+
+
+@pytest.mark.parametrize("k", [2, 3, 4, 9, 300])
+def test_cubic_fused_setup_equals_numpy_setup(rng, k, monkeypatch):
+    """The set-up in kernels (many keys) and in numpy (fewer keys, no compiling) give the
+    same coefficients and passes (within rounding), ties and tiny steps included."""
+    keys = smooth_keys(rng, k, 0.4)
+    if k > 4:
+        keys[3] = qa.multiply(keys[2], [0.0, 0.0, 1.0, 0.0])  # a half turn
+        keys[5] = keys[4]  # no turn
+    keys = qa.unflip(keys)
+    t = np.cumsum(rng.uniform(0.2, 2.0, k))
+    coef = {}
+    for name, keys_from in (("fused", 0), ("numpy", 10**9)):
+        monkeypatch.setattr(_cubic, "FUSED_MIN_KEYS", keys_from)
+        coef[name] = _cubic.coefficients(t, keys)
+    assert coef["fused"][1] == coef["numpy"][1]
+    np.testing.assert_allclose(coef["fused"][0], coef["numpy"][0], rtol=1e-13, atol=1e-13)

@@ -217,13 +217,15 @@ def test_unflip_flip_exactly_on_borders(client):
 
 
 def _broken_chain(seed=5):
-    """A key stream whose sign chain breaks: a zero row, a nan row and an exact quarter
-    turn (dot product 0), each with flips before and after it."""
+    """A key stream whose sign chain breaks: a zero row and a nan row, and an exact
+    half turn (dot product 0: the tie rule, which carries the sign on), each with flips
+    before and after it."""
     q = stream(40, seed=seed)
     q[9] = 0.0
     q[21] = np.nan
     q[30], q[31] = [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]
-    q[[8, 10, 20, 22, 29, 32]] *= -1
+    q[14:17] = [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, -1.0, 0.0], [0.0, 0.6, 0.0, -0.8]]  # half turns
+    q[[8, 10, 15, 20, 22, 29, 32]] *= -1
     return q
 
 

@@ -420,3 +420,121 @@ def test_slerp_huge_parameter_stays_unit(dtype):
     t = (rng.choice([-1, 1], 200) * 10 ** rng.uniform(5, 15 if dtype == np.float64 else 7, 200)).astype(dtype)
     r = qa.slerp(p, q, t)
     assert np.abs(qa.norm(r.astype(np.float64)) - 1).max() <= 4 * np.finfo(dtype).eps
+
+
+# ---------------------------------------------------------------------------
+# the tie rule: pairs a half turn apart on S³ (p·q = 0), issue 36 item 3
+
+# half-turn axes: the coordinate axes (D with exact zeros: scipy's canonical rule
+# decides by the first non-zero component) and general ones, either sign
+TIE_AXES = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (-1, 0, 0), (0, -1, 0), (0, 0, -1), (0, 0.6, -0.8),
+            (-0.6, 0.8, 0), (0.48, -0.6, 0.64), (-2 / 3, 1 / 3, 2 / 3)]
+
+
+def ref_flips(p, q):
+    """Whether unflip negates q after p (as it stands): p·q < 0, or a tie (|p·q| within
+    64 ulp of the rows' size) whose relative rotation p* ⊗ q has a negative first
+    non-negligible x, y, z (an independent numpy version of the rule)."""
+    p, q = np.asarray(p), np.asarray(q)
+    tie = 2.0**-17 if p.dtype == np.float32 else 2.0**-46
+    tol = tie * 0.5 * (p @ p + q @ q)
+    d = p @ q
+    v = p[0] * q[1:] - q[0] * p[1:] - np.cross(p[1:], q[1:])
+    big = np.flatnonzero(np.abs(v) > tol)
+    return bool(d < -tol or (abs(d) <= tol and big.size and v[big[0]] < 0))
+
+
+def half_turn(axis):
+    return np.array([0.0, *axis])
+
+
+def canonical_axis(axis):
+    """The axis as scipy's canonical rule for w = 0 takes it: first non-zero positive."""
+    a = np.asarray(axis, float)
+    return -a if a[np.flatnonzero(a)[0]] < 0 else a
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(TIE_AXES), st.floats(-0.5, 1.5))
+def test_slerp_tie_is_equivariant(seed, axis, t):
+    """slerp(R⊗p, R⊗q, t) = R⊗slerp(p, q, t) for pairs with p·q = 0 (q = p ⊗ (0, u)),
+    whatever the sign R⊗p·R⊗q takes by rounding; before the tie rule about 10 % of
+    rotations R turned the other way (up to 1.9 rad apart)."""
+    rng = np.random.default_rng(seed)
+    r = qa.random(64, rng=rng)
+    p = qa.random(rng=rng)
+    q = qa.multiply(p, half_turn(axis))
+    want = qa.multiply(r, qa.slerp(p, q, t))
+    got = qa.slerp(qa.multiply(r, p), qa.multiply(r, q), t)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)
+    got = qa.nlerp(qa.multiply(r, p), qa.multiply(r, q), t)
+    np.testing.assert_allclose(got, qa.multiply(r, qa.nlerp(p, q, t)), rtol=0, atol=1e-14)
+    # the arc is the one of scipy's rule: the relative rotation turns about the canonical axis
+    rel = qa.multiply(qa.conjugate(p), qa.slerp(p, q, t))
+    half = t * np.pi / 2
+    np.testing.assert_allclose(rel, [np.cos(half), *(np.sin(half) * canonical_axis(axis))], rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_slerp_tie_ignores_the_rounded_sign(dtype):
+    """The same pair with its dot product nudged by rounding either way (a few ulp)
+    takes the same arc; t = 1 gives q or −q as the rule says, exactly."""
+    eps = np.finfo(dtype).eps
+    p = np.array([1.0, 0, 0, 0], dtype)
+    for axis in TIE_AXES:
+        q = half_turn(axis).astype(dtype)
+        rows = [q, q + np.array([4 * eps, 0, 0, 0], dtype), q - np.array([4 * eps, 0, 0, 0], dtype)]
+        got = qa.slerp(p, np.array(rows), np.array(0.5, dtype))
+        assert got.dtype == dtype
+        np.testing.assert_allclose(got, got[[0, 0, 0]], rtol=0, atol=20 * eps)
+        sign = 1.0 if (canonical_axis(axis) == np.asarray(axis, float)).all() else -1.0
+        assert (qa.slerp(p, q, np.array(1.0, dtype)) == sign * q).all()
+        # shortest=False: no flip, the plain great arc to q
+        assert (qa.slerp(p, q, np.array(1.0, dtype), shortest=False) == q).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_unflip_tie_is_equivariant(seed):
+    """unflip(R ⊗ q) = R ⊗ unflip(q) for streams with half turns between keys, and the
+    tie rule's sign is scipy's (the relative rotation's canonical axis)."""
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(TIE_AXES), 12)
+    steps = np.array([half_turn(TIE_AXES[i]) for i in idx])
+    q = qa.cumprod(np.concatenate([qa.random(1, rng=rng), steps])) * rng.choice([-1.0, 1.0], (13, 1))
+    u = qa.unflip(q)
+    want = q.copy()
+    for i in range(1, len(q)):
+        if ref_flips(want[i - 1], want[i]):
+            want[i] = -want[i]
+    assert np.array_equal(u, want)
+    rel = qa.multiply(qa.conjugate(u[:-1]), u[1:])
+    np.testing.assert_allclose(rel[:, 1:], [canonical_axis(TIE_AXES[i]) for i in idx], rtol=0, atol=1e-14)
+    r = qa.random(rng=rng)
+    np.testing.assert_allclose(qa.unflip(qa.multiply(r, q)), qa.multiply(r, u), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_slerp_shortest_unit_within_3_ulp(dtype):
+    """The pairs kernel's cheap tangent (m2 s − p2 d)/(2ab) for the common pairs (every
+    pair of shortest=True): unit within 3 ulp, random, nearly identical and nearly
+    antipodal pairs (flipped into nearly identical ones), t inside and outside [0, 1]."""
+    rng = np.random.default_rng(3)
+    eps = np.finfo(dtype).eps
+    p = qa.random(5000, rng=rng).astype(dtype)
+    worst = 0.0
+    for scale in [None, 0, 1e-16, 1e-12, 1e-8, 1e-4, 1e-2, 0.3]:
+        if scale is None:
+            q = qa.random(5000, rng=rng).astype(dtype)
+        else:
+            q = qa.normalize((p.astype(np.float64) + rng.normal(size=p.shape) * scale).astype(dtype))
+        for sign in (1, -1):
+            t = rng.uniform(-0.5, 1.5, len(p)).astype(dtype)
+            r = qa.slerp(p, sign * q, t)
+            worst = max(worst, np.abs(qa.norm(r.astype(np.float64)) - 1).max() / eps)
+            if dtype == np.float64:
+                u = qa.slerp(p, sign * q, t, shortest=False)  # the same arc where p·q > 0
+                keep = np.einsum("ij,ij->i", p, sign * q) > 0
+                assert np.array_equal(r[keep], u[keep])
+                worst = max(worst, np.abs(qa.norm(u) - 1).max() / eps)  # shortest=False: θ up to π
+    assert worst <= 3, worst

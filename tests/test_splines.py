@@ -4,12 +4,14 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Slerp
 
 import quatarray as qa
 from quatarray import splines
 from quatarray._lanes import LANES, resample_streams
-from test_interpolation import R, ref_bezier, ref_controls, same_rot, smooth_keys
+from test_interpolation import R, ref_bezier, ref_controls, ref_flips, same_rot, smooth_keys
 
 
 # ---------------------------------------------------------------------------
@@ -110,12 +112,13 @@ def test_spline_takes_the_pieces_from_pieces_min_keys(monkeypatch, sort):
 def test_unit_keys_is_normalize_then_unflip_row_by_row(rng, dtype):
     """unit_keys' blocked sign chain gives the bits of the row-by-row rule: across its
     block borders and the borders of parts, with zero and nan rows (their dot products
-    flip nothing), orthogonal neighbours, and the first row negated (flip0)."""
+    flip nothing), orthogonal neighbours (the tie rule), and the first row negated (flip0)."""
     n = 3 * splines.UNIT_BLOCK + 5
     q = (rng.normal(size=(n, 4)) * rng.choice([-1, 1], n)[:, None]).astype(dtype)
     q[rng.random(n) < 0.05] = 0
     q[rng.random(n) < 0.02] = np.nan
     q[splines.UNIT_BLOCK - 1 : splines.UNIT_BLOCK + 1] = [[1, 0, 0, 0], [0, 1, 0, 0]]
+    q[20:24] = [[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]]  # ties inside a block
     q[0] = np.nan
     cuts = [0, 7, splines.UNIT_BLOCK + 3, n]
     parts = [q[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
@@ -124,7 +127,7 @@ def test_unit_keys_is_normalize_then_unflip_row_by_row(rng, dtype):
         if flip0:
             want[0] = -want[0]
         for i in range(1, n):
-            if np.dot(want[i], want[i - 1]) < 0:
+            if ref_flips(want[i - 1], want[i]):
                 want[i] = -want[i]
         for got in (splines.unit_keys(parts, flip0), splines.unit_keys([q], flip0)):
             assert got.dtype == dtype
@@ -267,6 +270,7 @@ def test_resample_streams_float32_and_lane_groups(rng):
     t = np.cumsum(rng.uniform(0.5, 1.5, k))
     keys = (qa.from_rotvec(np.cumsum(rng.normal(0, 0.4, (k, j, 3)), axis=0)) * 1.01).astype(np.float32)
     keys[1::4] *= -1
+    keys[5:9, 2] = [[1, 0, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1], [0, 0.6, 0, -0.8]]  # half turns: the tie rule
     nt = np.linspace(t[0], t[-1], 101)
     for method in ("bezier", "slerp", "nlerp", "squad"):
         out = np.full((nt.size, j + 1, 4), 7, np.float32)
@@ -280,3 +284,21 @@ def test_resample_streams_float32_and_lane_groups(rng):
         else:
             assert np.array_equal(out[:, :j], ref), method
         assert (out[:, j] == 7).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["bezier", "slerp", "squad", "nlerp", "cubic"]))
+def test_spline_left_multiplication_at_half_turns(seed, method):
+    """spline(R ⊗ keys) = R ⊗ spline(keys) for key streams with half turns between
+    keys (p·q = 0), whatever sign rounding gives R ⊗ p · R ⊗ q (the tie rule)."""
+    rng = np.random.default_rng(seed)
+    axes = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (0, -0.6, 0.8), (0.48, -0.6, 0.64)]
+    steps = np.array([[0.0, *axes[i]] for i in rng.integers(0, len(axes), 7)])
+    keys = qa.cumprod(np.concatenate([qa.random(1, rng=rng), steps]))
+    keys[rng.random(8) < 0.5] *= -1
+    times = np.cumsum(rng.uniform(0.5, 2.0, 8))
+    nt = np.linspace(times[0], times[-1], 101)
+    r = qa.random(rng=rng)
+    got = qa.spline(times, qa.multiply(r, keys), nt, method=method)
+    want = qa.multiply(r, qa.spline(times, keys, nt, method=method))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)

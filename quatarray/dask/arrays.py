@@ -328,23 +328,24 @@ def _cumprod_apply(local, carry, axis):
 
 
 # unflip: local flips, then one sign per chunk carried forward. The carry stops
-# where the chain breaks: a row whose dot product with the row before is 0 or nan
-# (a zero or non-finite row, or an exact quarter turn) is kept as it is whatever
-# the sign before it, so from there on the block's own flips are the global ones.
+# where the chain breaks: a row whose unflip sign after the row before is 0 (a
+# zero or non-finite row, or the row after one; see quatarray._slerp.unflip_sign)
+# is kept as it is whatever the sign before it, so from there on the block's own
+# flips are the global ones.
 
 
 def _sign_breaks(local, axis):
     """How many leading rows of a locally unflipped block (per line along `axis`,
     shaped like a row with a last axis of 1) take the sign carried into the block:
-    up to the first row whose dot product with the row before is 0 or nan."""
+    up to the first row whose unflip sign after the row before is 0."""
     n = local.shape[axis]
     a = np.moveaxis(local, axis, 0)
     if n < 2:
         return np.expand_dims(np.full(a.shape[1:-1], n), (axis, -1))
-    from ..algebra import dot
+    from ..interpolation import unflip_signs
 
     with _jit.serial():
-        d = dot(a[1:], a[:-1])  # as unflip's kernel (its sign aside: 0 and nan stay)
+        d = unflip_signs(a[:-1], a[1:])  # as unflip's kernel (its sign aside: 0 stays)
     broken = ~((d < 0) | (d > 0))
     reach = np.where(broken.any(axis=0), broken.argmax(axis=0) + 1, n)
     return np.expand_dims(reach, (axis, -1))
@@ -368,10 +369,10 @@ def unflip_carry(carry, prev, cur):
     # carry: True where chunk `prev` was negated; returns the same for chunk `cur`.
     # prev[2]: whether prev's carry reaches its last row (no break in the chain)
     last = prev[1] if carry is None else np.where(carry & prev[2], -prev[1], prev[1])
-    from ..algebra import dot
+    from ..interpolation import unflip_signs
 
     with _jit.serial():
-        d = dot(cur[0], last)
+        d = unflip_signs(last, cur[0])
     return (np.asarray(d) < 0)[..., None]
 
 
