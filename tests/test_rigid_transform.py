@@ -280,3 +280,20 @@ def test_vqs_conversion():
         QT.from_vqs(qa.VQS(v.v, v.q, np.array([1, 1, 2.0, 1])))
     with pytest.raises(TypeError):
         QT.from_vqs(tf)
+
+
+# ----------------------------------------------------------------------
+# found by a differential fuzz against scipy (review of issue 39)
+
+
+def test_iteration_of_an_nd_stack_gives_sub_stacks():
+    a, b = pair((2, 3))
+    items_a, items_b = list(a), list(b)
+    assert len(items_a) == len(items_b) == 2
+    for x, y in zip(items_a, items_b):
+        same(x, y)  # (3,) stacks, not broken "single" transforms
+        assert x.shape == (3,) and not x.single
+    a, b = pair((4,))
+    for x, y in zip(a, b):
+        same(x, y)
+        assert x.single

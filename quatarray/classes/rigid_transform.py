@@ -456,8 +456,8 @@ class RigidTransform:
     def __iter__(self):
         if self._single:
             raise TypeError("Single transform is not iterable.")
-        for i in range(self._q.shape[0]):
-            yield RigidTransform._from_house(self._q[i].copy(), self._t[i].copy(), True)
+        for i in range(self._q.shape[0]):  # singles of a 1-D stack, sub-stacks of an N-D one (as scipy)
+            yield RigidTransform._from_house(self._q[i].copy(), self._t[i].copy())
 
     def __reduce__(self):
         return (RigidTransform._from_house, (self._q, self._t, self._single))
