@@ -297,3 +297,21 @@ def test_iteration_of_an_nd_stack_gives_sub_stacks():
     for x, y in zip(a, b):
         same(x, y)
         assert x.single
+
+
+def test_concatenate_nothing_raises_scipy_type():
+    with pytest.raises(IndexError):
+        ST.concatenate([])
+    with pytest.raises(IndexError, match="at least one"):
+        QT.concatenate([])
+
+
+def test_mean_with_all_zero_weights_raises_as_scipy():
+    a, b = pair((4,))
+    with pytest.raises(ZeroDivisionError):
+        b.mean(weights=np.zeros(4))
+    with pytest.raises(ZeroDivisionError, match="weights"):
+        a.mean(weights=np.zeros(4))  # was a transform with a nan translation
+    a, b = pair((2, 3))
+    w = np.array([[1.0, 2, 3], [0, 0, 1]])
+    same(a.mean(weights=w, axis=1), b.mean(weights=w, axis=1))

@@ -259,6 +259,8 @@ class RigidTransform:
         if isinstance(transforms, RigidTransform):
             return RigidTransform._from_house(transforms._q.copy(), transforms._t.copy())
         transforms = list(transforms)
+        if not transforms:
+            raise IndexError("Expected at least one transform to concatenate, got none.")
         if not all(isinstance(x, RigidTransform) for x in transforms):
             raise TypeError("input must contain RigidTransform objects only")
         q = np.concatenate([x._q[None] if x._single else x._q for x in transforms])
@@ -409,6 +411,8 @@ class RigidTransform:
                     f"Expected `weights` to have number of values equal to number of transforms, got "
                     f"{w.size} values and {math.prod(lead)} transforms."
                 )
+            if not np.any(w):
+                raise ZeroDivisionError("The `weights` sum to zero: the mean is undefined.")
         else:
             w = None
         qm, tm = _rg.pose_mean(q, t, weights=w, axis=ax)
