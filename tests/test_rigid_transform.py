@@ -315,3 +315,24 @@ def test_mean_with_all_zero_weights_raises_as_scipy():
     a, b = pair((2, 3))
     w = np.array([[1.0, 2, 3], [0, 0, 1]])
     same(a.mean(weights=w, axis=1), b.mean(weights=w, axis=1))
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda T: T.from_matrix([[1, 0, 0, 0], [0, 1, 0]]),  # ragged
+        lambda T: T.from_matrix(np.eye(4, dtype=complex)),
+        lambda T: T.from_matrix(np.eye(4).astype(object)),
+        lambda T: T(np.array("abc")),
+        lambda T: T.from_exp_coords([[1, 0, 0, 0, 0, 0], [1]]),
+        lambda T: T.from_dual_quat([[0, 0, 0, 1, 0, 0, 0, 0], [1]]),
+        lambda T: T.from_translation([[1, 2, 3], [1]]),
+        lambda T: T.identity().apply([[1, 2, 3], [1]]),
+        lambda T: T.identity().apply("abc"),
+    ],
+)
+def test_input_that_is_not_real_numbers_raises_value_error(call):
+    with pytest.raises(ValueError):
+        call(ST)
+    with pytest.raises(ValueError):  # was TypeError (quatarray.Rotation already says ValueError, as scipy)
+        call(QT)

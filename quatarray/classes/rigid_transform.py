@@ -28,6 +28,16 @@ _F32 = np.dtype(np.float32)
 _F64 = np.dtype(np.float64)
 
 
+def _reals(x, name, dtype=None):
+    """`x` as a float32/float64 ndarray (:func:`as_float`), with scipy's exception type:
+    ``ValueError`` for input that is not an array of real numbers (ragged, strings,
+    complex, objects)."""
+    try:
+        return as_float(x, name, dtype)
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None
+
+
 def _is_rotation(x):
     if isinstance(x, Rotation):
         return True
@@ -84,7 +94,7 @@ class RigidTransform:
 
     @staticmethod
     def _matrix_arg(matrix):
-        a = as_float(matrix, "matrix")
+        a = _reals(matrix, "matrix")
         if a.ndim < 2 or a.shape[-2:] != (4, 4):
             raise ValueError(f"Expected `matrix` to have shape (..., 4, 4), got {a.shape}.")
         return a
@@ -169,7 +179,7 @@ class RigidTransform:
     @staticmethod
     def from_translation(translation):
         """Pure translations ``(..., 3)`` (identity rotation)."""
-        t = as_float(translation, "translation")
+        t = _reals(translation, "translation")
         if t.ndim < 1 or t.shape[-1] != 3:
             raise ValueError(f"Expected `translation` to have shape (..., 3), got {t.shape}.")
         q = np.zeros(t.shape[:-1] + (4,), t.dtype)
@@ -182,7 +192,7 @@ class RigidTransform:
         `translation` ``(..., 3)``; the leading shapes broadcast."""
         if not _is_rotation(rotation):
             raise TypeError(f"Expected `rotation` to be a `Rotation` instance, got {type(rotation)}.")
-        t = as_float(translation, "translation")
+        t = _reals(translation, "translation")
         if t.ndim < 1 or t.shape[-1] != 3:
             raise ValueError(f"Expected `translation` to have shape (..., 3), got {t.shape}.")
         q, single = _rotation_wxyz(rotation)
@@ -198,7 +208,7 @@ class RigidTransform:
     def from_exp_coords(exp_coords):
         """Transforms from exponential coordinates ``(..., 6)``: rotation vector, then
         the translational part (see :func:`quatarray.from_exp_coords`)."""
-        e = as_float(exp_coords, "exp_coords")
+        e = _reals(exp_coords, "exp_coords")
         if e.ndim < 1 or e.shape[-1] != 6:
             raise ValueError(f"Expected `exp_coords` to have shape (..., 6), got {e.shape}.")
         q, t = _rg.elementwise(_rg._bind(_rg._from_exp_coords, 1, 1), [(e, "exp_coords", (6,))], [(4,), (3,)])
@@ -208,7 +218,7 @@ class RigidTransform:
     def from_dual_quat(dual_quat, *, scalar_first=False):
         """Transforms from dual quaternions ``(..., 8)`` (real part, then dual part; each
         scalar last by default, as scipy), normalised as scipy does for non-unit input."""
-        d = as_float(dual_quat, "dual_quat")
+        d = _reals(dual_quat, "dual_quat")
         if d.ndim < 1 or d.shape[-1] != 8:
             raise ValueError(f"Expected `dual_quat` to have shape (..., 8), got {d.shape}.")
         q, t = _rg.elementwise(_rg._bind(_rg._from_dual_quat, 1, int(not scalar_first), 1),
@@ -320,7 +330,7 @@ class RigidTransform:
     def apply(self, vector, inverse=False):
         """The vectors ``(..., 3)`` moved by the transforms (``inverse=True``: by their
         inverses); leading shapes broadcast."""
-        v = as_float(vector, "vector", self._q.dtype)
+        v = _reals(vector, "vector", self._q.dtype)
         if v.ndim < 1 or v.shape[-1] != 3:
             raise ValueError(f"Expected vector to have shape (..., 3), got {v.shape}.")
         try:
@@ -403,7 +413,7 @@ class RigidTransform:
             raise ValueError(f"axis {ax} is out of bounds for transform with shape {lead}.")
         ax = tuple(sorted({k % nd for k in ax}))
         if weights is not None:
-            w = as_float(weights, "weights", _F64)
+            w = _reals(weights, "weights", _F64)
             if np.any(w < 0):
                 raise ValueError("`weights` must be non-negative.")
             if w.shape != lead:
