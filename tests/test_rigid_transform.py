@@ -336,3 +336,14 @@ def test_input_that_is_not_real_numbers_raises_value_error(call):
         call(ST)
     with pytest.raises(ValueError):  # was TypeError (quatarray.Rotation already says ValueError, as scipy)
         call(QT)
+
+
+def test_rotation_part_compares_with_scipy_rotations():
+    """A user who switches the RigidTransform import only gets quatarray's Rotation
+    from ``tf.rotation`` and compares it with scipy's (as scipy's own tests do)."""
+    a, b = pair((5,))
+    assert np.all(a.rotation.approx_equal(b.rotation, atol=1e-12))
+    assert a[0].rotation.approx_equal(b[0].rotation).shape == (1,)
+    assert not np.any(a.rotation.approx_equal(b.rotation.inv() * SR.from_rotvec([0, 0, 1e-3])))
+    with pytest.raises(TypeError):
+        a.rotation.approx_equal(np.eye(3))
