@@ -347,3 +347,12 @@ def test_rotation_part_compares_with_scipy_rotations():
     assert not np.any(a.rotation.approx_equal(b.rotation.inv() * SR.from_rotvec([0, 0, 1e-3])))
     with pytest.raises(TypeError):
         a.rotation.approx_equal(np.eye(3))
+
+
+def test_bad_last_row_message_reads_as_scipy():
+    m = np.tile(np.eye(4), (3, 1, 1))
+    m[1, 3, 0] = 1.0
+    with pytest.raises(ValueError, match="last row of transformation matrix"):
+        ST.from_matrix(m)
+    with pytest.raises(ValueError, match=r"last row of transformation matrix `matrix`.*row 1"):
+        QT.from_matrix(m)

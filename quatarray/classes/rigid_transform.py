@@ -89,7 +89,7 @@ class RigidTransform:
     __slots__ = ("_q", "_single", "_t")
 
     def __init__(self, matrix, normalize=True, copy=True):
-        q, t = _rg.pose_from_matrix(self._matrix_arg(matrix), assume_valid=not normalize)
+        q, t = _rg.pose_from_matrix(self._matrix_arg(matrix), assume_valid=not normalize, _name="matrix")
         self._q, self._t, self._single = q, t, q.ndim == 1
 
     @staticmethod
