@@ -356,3 +356,14 @@ def test_bad_last_row_message_reads_as_scipy():
         ST.from_matrix(m)
     with pytest.raises(ValueError, match=r"last row of transformation matrix `matrix`.*row 1"):
         QT.from_matrix(m)
+
+
+def test_left_handed_matrix_message_reads_as_scipy():
+    m = np.tile(np.eye(4), (3, 1, 1))
+    m[2, 0, 0] = -1
+    with pytest.raises(ValueError, match="Non-positive determinant"):
+        ST.from_matrix(m)
+    with pytest.raises(ValueError, match=r"Non-positive determinant.*`matrix` at row 2"):
+        QT.from_matrix(m)
+    with pytest.raises(ValueError, match="last row"):  # the last row is still checked first
+        QT.from_matrix(np.diag([-1.0, 1, 1, 2]))

@@ -89,7 +89,18 @@ class RigidTransform:
     __slots__ = ("_q", "_single", "_t")
 
     def __init__(self, matrix, normalize=True, copy=True):
-        q, t = _rg.pose_from_matrix(self._matrix_arg(matrix), assume_valid=not normalize, _name="matrix")
+        m = self._matrix_arg(matrix)
+        try:
+            q, t = _rg.pose_from_matrix(m, assume_valid=not normalize, _name="matrix")
+        except ValueError as exc:
+            if "positive determinant" not in str(exc):
+                raise
+            lead = m.shape[:-2]
+            k = int(np.argmax(~(np.linalg.det(m[..., :3, :3].reshape(-1, 3, 3)) > 0)))
+            raise ValueError(  # scipy's words, and the row
+                "Non-positive determinant (left-handed or null coordinate frame) in the rotation part of "
+                f"transformation matrix `matrix` at {where(k, lead)}: {m.reshape(-1, 4, 4)[k, :3, :3].tolist()}."
+            ) from None
         self._q, self._t, self._single = q, t, q.ndim == 1
 
     @staticmethod
