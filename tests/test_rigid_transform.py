@@ -367,3 +367,15 @@ def test_left_handed_matrix_message_reads_as_scipy():
         QT.from_matrix(m)
     with pytest.raises(ValueError, match="last row"):  # the last row is still checked first
         QT.from_matrix(np.diag([-1.0, 1, 1, 2]))
+
+
+def test_setitem_takes_a_one_transform_stack_into_one_slot():
+    for T in (ST, QT):
+        a = T.from_translation(np.arange(9.0).reshape(3, 3))
+        a[0] = T.from_translation(np.ones((1, 3)))  # numpy's rule: the leading 1 drops (was a ValueError)
+        a[1:3] = T.from_translation([[5.0, 5, 5]])
+        close(a.translation, [[1, 1, 1], [5, 5, 5], [5, 5, 5]])
+        with pytest.raises(ValueError):
+            a[0] = T.from_translation(np.ones((2, 3)))
+        with pytest.raises(ValueError):
+            a[0:2] = T.identity(3)

@@ -476,7 +476,7 @@ class RigidTransform:
             if not a.flags.writeable or not a.flags.c_contiguous:  # a broadcast or strided array: own a copy
                 a = np.ascontiguousarray(a).copy()
                 setattr(self, name, a)
-            a.reshape(-1, k)[rows] = np.broadcast_to(getattr(value, name), rows.shape + (k,))
+            a.reshape(-1, k)[rows] = getattr(value, name)  # numpy's assignment rules (leading 1s drop), as scipy
 
     def __iter__(self):
         if self._single:
