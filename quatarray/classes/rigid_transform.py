@@ -69,7 +69,10 @@ class RigidTransform:
     :meth:`from_components_wxyz` to wrap arrays); tuple indices follow numpy's
     rules on the leading shape (scipy 1.17 reads ``tf[0, 1]`` as ``tf[[0, 1]]``);
     ``tf ** n`` is exp(n·log T) to rounding (scipy's agrees with that within
-    about 1e-7).
+    about 1e-6 for some exponents, such as 1.7); ``mean`` with weights that are
+    all zero raises ``ZeroDivisionError`` for N-D stacks too (scipy's gives a
+    nan translation there); ``tf[...]`` works and ``mean`` takes weights as a
+    list.
 
     Examples
     --------
