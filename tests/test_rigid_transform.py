@@ -379,3 +379,25 @@ def test_setitem_takes_a_one_transform_stack_into_one_slot():
             a[0] = T.from_translation(np.ones((2, 3)))
         with pytest.raises(ValueError):
             a[0:2] = T.identity(3)
+
+
+@pytest.mark.slow
+def test_scipy_own_rigid_transform_tests_pass_but_the_known_four():
+    """scipy's installed test_rigid_transform.py, run on quatarray's classes by
+    benchmarks/run_scipy_rigid_transform_tests.py in a subprocess (~20 s): only
+    the tests that read scipy's private ``_matrix`` or want ``copy=False`` to
+    share the caller's matrix may fail."""
+    import os
+    import re
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    script = os.path.join(root, "benchmarks", "run_scipy_rigid_transform_tests.py")
+    res = subprocess.run([sys.executable, script, "--rotation", "-rA", "-q"], cwd=root, capture_output=True,
+                         text=True, timeout=600)
+    names = {k: set(re.findall(rf"^{k} \S*::(\S+)", res.stdout, re.M)) for k in ("PASSED", "FAILED", "ERROR")}
+    known = {f"test_pow[numpy-{n}]" for n in (1, 2, 3)} | {"test_copy_flag[numpy]"}
+    assert not names["ERROR"], res.stdout[-3000:]
+    assert names["FAILED"] <= known, res.stdout[-5000:]
+    assert len(names["PASSED"]) >= 91, res.stdout[-3000:]
