@@ -72,7 +72,10 @@ class RigidTransform:
     about 1e-6 for some exponents, such as 1.7); ``mean`` with weights that are
     all zero raises ``ZeroDivisionError`` for N-D stacks too (scipy's gives a
     nan translation there); ``tf[...]`` works and ``mean`` takes weights as a
-    list.
+    list; ``from_dual_quat`` scales the real part before taking its norm, so
+    dual quaternions of magnitude below about 1e-154 or above 1e154 are
+    normalised as any other (scipy's norm underflows to 0, giving the identity
+    rotation, or overflows, giving a zero matrix).
 
     Examples
     --------
