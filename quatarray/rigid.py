@@ -401,7 +401,7 @@ def pose_as_matrix(q, t, out=None):
     return elementwise(_as_matrix, [(q, "q", Q), (t, "t", V)], [(4, 4)], out)
 
 
-def pose_from_matrix(m, assume_valid=False):
+def pose_from_matrix(m, assume_valid=False, *, _name="m"):
     """(q, t) of 4×4 homogeneous matrices, as scipy's ``RigidTransform.from_matrix``.
 
     The last row must be exactly [0, 0, 0, 1] (else ``ValueError`` naming the
@@ -419,13 +419,13 @@ def pose_from_matrix(m, assume_valid=False):
     from ._validate import where
     from .conversions import from_matrix
 
-    a = check_core(as_float(m, "m"), "m", (4, 4))
+    a = check_core(as_float(m, _name), _name, (4, 4))
     last = a[..., 3, :]
     bad = ~np.all(last == np.array([0.0, 0.0, 0.0, 1.0], a.dtype), axis=-1)
     if bad.any():
         k = int(np.argmax(bad.reshape(-1)))
         raise ValueError(
-            f"Expected the last row of `m` to be exactly [0, 0, 0, 1], got "
+            f"Expected the last row of transformation matrix `{_name}` to be exactly [0, 0, 0, 1], got "
             f"{last.reshape(-1, 4)[k].tolist()} at {where(k, a.shape[:-2])}."
         )
     q = from_matrix(a[..., :3, :3], assume_valid=assume_valid)

@@ -134,7 +134,7 @@ def test_mean_matches_scipy():
 def test_pose_from_matrix_refuses_a_bad_last_row():
     m = np.tile(np.eye(4), (3, 1, 1))
     m[2, 3, 0] = 1e-9
-    with pytest.raises(ValueError, match=r"last row of `m`.*row 2"):
+    with pytest.raises(ValueError, match=r"last row of transformation matrix `m`.*row 2"):
         qa.pose_from_matrix(m)
     with pytest.raises(ValueError, match=r"\(\.\.\., 4\)"):
         qa.pose_compose(np.ones(3), np.zeros(3), np.ones(4), np.zeros(3))

@@ -28,6 +28,16 @@ _F32 = np.dtype(np.float32)
 _F64 = np.dtype(np.float64)
 
 
+def _reals(x, name, dtype=None):
+    """`x` as a float32/float64 ndarray (:func:`as_float`), with scipy's exception type:
+    ``ValueError`` for input that is not an array of real numbers (ragged, strings,
+    complex, objects)."""
+    try:
+        return as_float(x, name, dtype)
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None
+
+
 def _is_rotation(x):
     if isinstance(x, Rotation):
         return True
@@ -59,7 +69,13 @@ class RigidTransform:
     :meth:`from_components_wxyz` to wrap arrays); tuple indices follow numpy's
     rules on the leading shape (scipy 1.17 reads ``tf[0, 1]`` as ``tf[[0, 1]]``);
     ``tf ** n`` is exp(n·log T) to rounding (scipy's agrees with that within
-    about 1e-7).
+    about 1e-6 for some exponents, such as 1.7); ``mean`` with weights that are
+    all zero raises ``ZeroDivisionError`` for N-D stacks too (scipy's gives a
+    nan translation there); ``tf[...]`` works and ``mean`` takes weights as a
+    list; ``from_dual_quat`` scales the real part before taking its norm, so
+    dual quaternions of magnitude below about 1e-154 or above 1e154 are
+    normalised as any other (scipy's norm underflows to 0, giving the identity
+    rotation, or overflows, giving a zero matrix).
 
     Examples
     --------
@@ -79,12 +95,23 @@ class RigidTransform:
     __slots__ = ("_q", "_single", "_t")
 
     def __init__(self, matrix, normalize=True, copy=True):
-        q, t = _rg.pose_from_matrix(self._matrix_arg(matrix), assume_valid=not normalize)
+        m = self._matrix_arg(matrix)
+        try:
+            q, t = _rg.pose_from_matrix(m, assume_valid=not normalize, _name="matrix")
+        except ValueError as exc:
+            if "positive determinant" not in str(exc):
+                raise
+            lead = m.shape[:-2]
+            k = int(np.argmax(~(np.linalg.det(m[..., :3, :3].reshape(-1, 3, 3)) > 0)))
+            raise ValueError(  # scipy's words, and the row
+                "Non-positive determinant (left-handed or null coordinate frame) in the rotation part of "
+                f"transformation matrix `matrix` at {where(k, lead)}: {m.reshape(-1, 4, 4)[k, :3, :3].tolist()}."
+            ) from None
         self._q, self._t, self._single = q, t, q.ndim == 1
 
     @staticmethod
     def _matrix_arg(matrix):
-        a = as_float(matrix, "matrix")
+        a = _reals(matrix, "matrix")
         if a.ndim < 2 or a.shape[-2:] != (4, 4):
             raise ValueError(f"Expected `matrix` to have shape (..., 4, 4), got {a.shape}.")
         return a
@@ -169,7 +196,7 @@ class RigidTransform:
     @staticmethod
     def from_translation(translation):
         """Pure translations ``(..., 3)`` (identity rotation)."""
-        t = as_float(translation, "translation")
+        t = _reals(translation, "translation")
         if t.ndim < 1 or t.shape[-1] != 3:
             raise ValueError(f"Expected `translation` to have shape (..., 3), got {t.shape}.")
         q = np.zeros(t.shape[:-1] + (4,), t.dtype)
@@ -182,7 +209,7 @@ class RigidTransform:
         `translation` ``(..., 3)``; the leading shapes broadcast."""
         if not _is_rotation(rotation):
             raise TypeError(f"Expected `rotation` to be a `Rotation` instance, got {type(rotation)}.")
-        t = as_float(translation, "translation")
+        t = _reals(translation, "translation")
         if t.ndim < 1 or t.shape[-1] != 3:
             raise ValueError(f"Expected `translation` to have shape (..., 3), got {t.shape}.")
         q, single = _rotation_wxyz(rotation)
@@ -198,7 +225,7 @@ class RigidTransform:
     def from_exp_coords(exp_coords):
         """Transforms from exponential coordinates ``(..., 6)``: rotation vector, then
         the translational part (see :func:`quatarray.from_exp_coords`)."""
-        e = as_float(exp_coords, "exp_coords")
+        e = _reals(exp_coords, "exp_coords")
         if e.ndim < 1 or e.shape[-1] != 6:
             raise ValueError(f"Expected `exp_coords` to have shape (..., 6), got {e.shape}.")
         q, t = _rg.elementwise(_rg._bind(_rg._from_exp_coords, 1, 1), [(e, "exp_coords", (6,))], [(4,), (3,)])
@@ -208,7 +235,7 @@ class RigidTransform:
     def from_dual_quat(dual_quat, *, scalar_first=False):
         """Transforms from dual quaternions ``(..., 8)`` (real part, then dual part; each
         scalar last by default, as scipy), normalised as scipy does for non-unit input."""
-        d = as_float(dual_quat, "dual_quat")
+        d = _reals(dual_quat, "dual_quat")
         if d.ndim < 1 or d.shape[-1] != 8:
             raise ValueError(f"Expected `dual_quat` to have shape (..., 8), got {d.shape}.")
         q, t = _rg.elementwise(_rg._bind(_rg._from_dual_quat, 1, int(not scalar_first), 1),
@@ -259,6 +286,8 @@ class RigidTransform:
         if isinstance(transforms, RigidTransform):
             return RigidTransform._from_house(transforms._q.copy(), transforms._t.copy())
         transforms = list(transforms)
+        if not transforms:
+            raise IndexError("Expected at least one transform to concatenate, got none.")
         if not all(isinstance(x, RigidTransform) for x in transforms):
             raise TypeError("input must contain RigidTransform objects only")
         q = np.concatenate([x._q[None] if x._single else x._q for x in transforms])
@@ -318,7 +347,7 @@ class RigidTransform:
     def apply(self, vector, inverse=False):
         """The vectors ``(..., 3)`` moved by the transforms (``inverse=True``: by their
         inverses); leading shapes broadcast."""
-        v = as_float(vector, "vector", self._q.dtype)
+        v = _reals(vector, "vector", self._q.dtype)
         if v.ndim < 1 or v.shape[-1] != 3:
             raise ValueError(f"Expected vector to have shape (..., 3), got {v.shape}.")
         try:
@@ -401,7 +430,7 @@ class RigidTransform:
             raise ValueError(f"axis {ax} is out of bounds for transform with shape {lead}.")
         ax = tuple(sorted({k % nd for k in ax}))
         if weights is not None:
-            w = as_float(weights, "weights", _F64)
+            w = _reals(weights, "weights", _F64)
             if np.any(w < 0):
                 raise ValueError("`weights` must be non-negative.")
             if w.shape != lead:
@@ -409,6 +438,8 @@ class RigidTransform:
                     f"Expected `weights` to have number of values equal to number of transforms, got "
                     f"{w.size} values and {math.prod(lead)} transforms."
                 )
+            if not np.any(w):
+                raise ZeroDivisionError("The `weights` sum to zero: the mean is undefined.")
         else:
             w = None
         qm, tm = _rg.pose_mean(q, t, weights=w, axis=ax)
@@ -451,13 +482,13 @@ class RigidTransform:
             if not a.flags.writeable or not a.flags.c_contiguous:  # a broadcast or strided array: own a copy
                 a = np.ascontiguousarray(a).copy()
                 setattr(self, name, a)
-            a.reshape(-1, k)[rows] = np.broadcast_to(getattr(value, name), rows.shape + (k,))
+            a.reshape(-1, k)[rows] = getattr(value, name)  # numpy's assignment rules (leading 1s drop), as scipy
 
     def __iter__(self):
         if self._single:
             raise TypeError("Single transform is not iterable.")
-        for i in range(self._q.shape[0]):
-            yield RigidTransform._from_house(self._q[i].copy(), self._t[i].copy(), True)
+        for i in range(self._q.shape[0]):  # singles of a 1-D stack, sub-stacks of an N-D one (as scipy)
+            yield RigidTransform._from_house(self._q[i].copy(), self._t[i].copy())
 
     def __reduce__(self):
         return (RigidTransform._from_house, (self._q, self._t, self._single))

@@ -118,6 +118,18 @@ def _map(kernel, a, cin, cout):
     return res[()] if res.ndim == 0 else res
 
 
+def _from_scipy(other):
+    """A scipy ``Rotation`` as quatarray's (``TypeError`` for anything else)."""
+    try:
+        from scipy.spatial.transform import Rotation as SR
+    except ImportError:  # pragma: no cover - scipy is a test dependency only
+        SR = ()
+    if not isinstance(other, SR):
+        raise TypeError(f"Expected `other` to be a Rotation, got {type(other).__name__}.")
+    q = np.asarray(other.as_quat(scalar_first=True))
+    return Rotation._from_house(q, q.ndim == 1)
+
+
 def _floats(x, name):
     """`x` as a float32/float64 ndarray: the arrays the class holds pass as they are."""
     if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32):
@@ -901,7 +913,7 @@ class Rotation:
         array([ True])
         """
         if not isinstance(other, Rotation):
-            raise TypeError(f"Expected `other` to be a Rotation, got {type(other).__name__}.")
+            other = _from_scipy(other)  # scipy's Rotation compares too (``tf.rotation`` against scipy's)
         if atol is None:
             if degrees:
                 warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.", stacklevel=2)
