@@ -89,7 +89,7 @@ def chunk(request, benchmark):
 
 
 def _cli_convert(src, dst, chunk):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     assert main(["convert", str(src), str(dst), "--to", "euler:ZYX", "--chunk", str(chunk),
                  "--force", "--no-progress"]) == 0

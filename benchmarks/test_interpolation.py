@@ -62,7 +62,7 @@ def test_slerp_numpy_quaternion(benchmark, pairs):
 @pytest.mark.benchmark(group="slerp")
 def test_slerp_quaternionic(benchmark, pairs):
     quaternionic = pytest.importorskip("quaternionic")
-    from quatarray.bench import peer_crashes
+    from quatarray.app.bench import peer_crashes
 
     if peer_crashes("quaternionic.slerp"):
         pytest.skip("quaternionic's slerp crashes the interpreter on this set-up")

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from conftest import run
 
-from quatarray.bench import _clip, _numpy_world
+from quatarray.app.bench import _clip, _numpy_world
 
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
 

@@ -72,7 +72,7 @@ def test_ape_sim3(benchmark, lib, n):
 @pytest.mark.parametrize("n", SIZES)
 @pytest.mark.parametrize("what", ["quatarray-ape+rpe", "read-npy"])
 def test_eval_vs_read(benchmark, tmp_path_factory, what, n):
-    from quatarray.evaluate import read_poses
+    from quatarray.app.eval_verb import read_poses
 
     benchmark.group = f"eval-vs-read-{n:.0e}"
     benchmark.extra_info["items"] = n

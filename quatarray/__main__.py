@@ -1,7 +1,7 @@
-"""``python -m quatarray``: the command line (see :mod:`quatarray.cli`)."""
+"""``python -m quatarray``: the command line (see :mod:`quatarray.app.cli`)."""
 
 import sys
 
-from .cli import main
+from .app.cli import main
 
 sys.exit(main())

@@ -10,7 +10,6 @@ equals :func:`quatarray.spline` on it alone, bit for bit. Used by
 import numpy as np
 
 from . import _elements as E
-from ._access import load1, store1
 from ._jit import inline, kernel, like, prange, rowloop, specialise
 from ._slerp import arc_slerp, bezier_seg, bisect4, controls4, double4, fixed_arc, nlerp4, slerp4, squad_inner4, unflip_sign
 from .interpolation import tangent_scales
@@ -45,15 +44,15 @@ def lane_groups(j):
 @inline
 def load_lane(a, b, l):
     """The quaternion of lane l at offset b (a key's start) of a lane-layout array."""
-    return load1(a, b + l), load1(a, b + LANES + l), load1(a, b + 2 * LANES + l), load1(a, b + 3 * LANES + l)
+    return E.load1(a, b + l), E.load1(a, b + LANES + l), E.load1(a, b + 2 * LANES + l), E.load1(a, b + 3 * LANES + l)
 
 
 @inline
 def store_lane(a, b, l, q):
-    store1(a, b + l, q[0])
-    store1(a, b + LANES + l, q[1])
-    store1(a, b + 2 * LANES + l, q[2])
-    store1(a, b + 3 * LANES + l, q[3])
+    E.store1(a, b + l, q[0])
+    E.store1(a, b + LANES + l, q[1])
+    E.store1(a, b + 2 * LANES + l, q[2])
+    E.store1(a, b + 3 * LANES + l, q[3])
 
 
 @kernel
@@ -146,17 +145,17 @@ def _lane_squad_controls(q, nk, s):
 def put_lane_arc(arcs, c, l, p, q):
     """(θ, v) of the fixed arc p → q (as the table's ``put_arc``) at rows c … c + 4 of lane l."""
     th, v = fixed_arc(p, q)  # as splines.put_arc
-    store1(arcs, c * LANES + l, th)
-    store1(arcs, (c + 1) * LANES + l, v[0])
-    store1(arcs, (c + 2) * LANES + l, v[1])
-    store1(arcs, (c + 3) * LANES + l, v[2])
-    store1(arcs, (c + 4) * LANES + l, v[3])
+    E.store1(arcs, c * LANES + l, th)
+    E.store1(arcs, (c + 1) * LANES + l, v[0])
+    E.store1(arcs, (c + 2) * LANES + l, v[1])
+    E.store1(arcs, (c + 3) * LANES + l, v[2])
+    E.store1(arcs, (c + 4) * LANES + l, v[3])
 
 
 @inline
 def lane_arc(arcs, c, l):
-    return (load1(arcs, c * LANES + l), load1(arcs, (c + 1) * LANES + l), load1(arcs, (c + 2) * LANES + l),
-            load1(arcs, (c + 3) * LANES + l), load1(arcs, (c + 4) * LANES + l))
+    return (E.load1(arcs, c * LANES + l), E.load1(arcs, (c + 1) * LANES + l), E.load1(arcs, (c + 2) * LANES + l),
+            E.load1(arcs, (c + 3) * LANES + l), E.load1(arcs, (c + 4) * LANES + l))
 
 
 @inline

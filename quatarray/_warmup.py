@@ -271,7 +271,7 @@ def _trajectory(metric):
 
 def _eval_verb(qa, s):
     """``quatarray eval`` on two small TUM files: the chunked path (and the in-memory one)."""
-    from . import evaluate
+    from .app import eval_verb as evaluate  # the verb's chunked path (imported only by this entry)
 
     ref, est = _poses(qa, s)
     with tempfile.TemporaryDirectory() as d, open(os.devnull, "w") as null:

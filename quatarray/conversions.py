@@ -19,7 +19,6 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load33, store33
 from ._jit import element, inline, like, prange, rowloop
 from ._mat33 import cofactor33, det33
 from ._trig import half_arc, sincos, sincos_limit
@@ -221,11 +220,11 @@ def _as_matrix_plain(i, args):
     q, out = args
     a = E.load4(q, i)
     n2 = E.qdot(a, a)
-    store33(out, i, E.qmatrix_raw(a, n2))
+    E.store33(out, i, E.qmatrix_raw(a, n2))
     return E.far_scale(n2)
 
 
-_as_matrix = E.FarRows(_as_matrix_plain, E.redo(store33, E.qmatrix, "as_matrix"), "as_matrix")
+_as_matrix = E.FarRows(_as_matrix_plain, E.redo(E.store33, E.qmatrix, "as_matrix"), "as_matrix")
 
 
 @rowloop
@@ -238,7 +237,7 @@ def _from_matrix(m, out):
     eps = abs((like(m, 4.0 / 3.0) - one) * like(m, 3.0) - one)
     bad = n
     for i in prange(n):
-        a = load33(m, i)
+        a = E.load33(m, i)
         d = det33(a)
         s = a
         if not ((abs(d) > like(d, 1e-8)) & (abs(d) < like(d, 1e8))):
@@ -266,7 +265,7 @@ def _from_matrix(m, out):
 @inline
 def _from_matrix_valid_plain(i, args):
     m, out = args
-    q, n2 = shepperd_unit(load33(m, i))
+    q, n2 = shepperd_unit(E.load33(m, i))
     E.store4(out, i, q)
     return E.far_scale(n2)
 
@@ -274,7 +273,7 @@ def _from_matrix_valid_plain(i, args):
 @inline
 def _from_matrix_valid_scaled(i, args):
     m, out = args
-    q = shepperd_raw(load33(m, i))
+    q = shepperd_raw(E.load33(m, i))
     if E.far_scale(E.qdot(q, q)):
         # rare rows: divided by the largest |component| first (plain divisions, so that
         # this pass compiles little: no E.qscaled), then normalised; inf and nan give nan

@@ -27,7 +27,6 @@ import numpy as np
 
 from . import _elements as E
 from . import _trig
-from ._access import load4, store3
 from ._jit import element, inline, like, prange, rowloop
 from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
@@ -146,7 +145,7 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, lo, hi, out, flags):
         m = min(EULER_BLOCK, n - base)
         for k in range(m):
             r = base + k
-            w, x, y, z = load4(q, r)
+            w, x, y, z = E.load4(q, r)
             one = like(w, 1.0)
             zero = like(w, 0.0)
             two = like(w, 2.0)
@@ -184,7 +183,7 @@ def _as_euler(q, ci, cj, ck, tb, sign, ext, lamb, scale, lo, hi, out, flags):
             plane[2 * EULER_BLOCK + k] = nan if not ok else wrap(v if ext else u) * s
             flags[r] = np.uint8(lock) | (np.uint8(0) if ok else np.uint8(2))
         for k in range(m):
-            store3(out, base + k, (plane[k], plane[EULER_BLOCK + k], plane[2 * EULER_BLOCK + k]))
+            E.store3(out, base + k, (plane[k], plane[EULER_BLOCK + k], plane[2 * EULER_BLOCK + k]))
     nl = 0
     nf = 0
     for r in range(n):

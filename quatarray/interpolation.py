@@ -21,7 +21,6 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load1, load4, store4
 from ._jit import fmuladd, kernel, like, prange, rowloop
 from ._slerp import (
     arc,
@@ -77,8 +76,8 @@ def _slerp(p, q, t, shortest, out):
             m = min(n - b0, B)
             rare = 0
             for k in range(m):
-                th, v, sgn, r = arc_fast(load4(p, b0 + k), load4(q, b0 + k), shortest)
-                pl[k] = load1(t, b0 + k) * th
+                th, v, sgn, r = arc_fast(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
+                pl[k] = E.load1(t, b0 + k) * th
                 pl[B + k] = v[0]
                 pl[2 * B + k] = v[1]
                 pl[3 * B + k] = v[2]
@@ -93,8 +92,8 @@ def _slerp(p, q, t, shortest, out):
             while rare:
                 while pl[7 * B + k] == 0.0:
                     k += 1
-                th, v, sgn = arc(load4(p, b0 + k), load4(q, b0 + k), shortest)
-                pl[k] = load1(t, b0 + k) * th
+                th, v, sgn = arc(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
+                pl[k] = E.load1(t, b0 + k) * th
                 pl[B + k] = v[0]
                 pl[2 * B + k] = v[1]
                 pl[3 * B + k] = v[2]
@@ -106,8 +105,8 @@ def _slerp(p, q, t, shortest, out):
                 pl[k], pl[6 * B + k] = sincos(pl[k])
             for k in range(m):
                 i = b0 + k
-                pi = load4(p, i)
-                qi = load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
+                pi = E.load4(p, i)
+                qi = E.load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
                 s = pl[k]
                 c = pl[6 * B + k]
                 r = (fmuladd(s, pl[B + k], c * pi[0]), fmuladd(s, pl[2 * B + k], c * pi[1]),
@@ -115,10 +114,10 @@ def _slerp(p, q, t, shortest, out):
                 # exact end (t = 0 is exact: sincos(0) = (0, 1)); a branch, which LLVM leaves
                 # scalar: the SIMD select of slerp_row ran 1.17x faster in cache but 0.8x at
                 # 2·10⁶ rows (from memory)
-                if load1(t, i) == like(s, 1.0):
+                if E.load1(t, i) == like(s, 1.0):
                     sq = pl[5 * B + k]
                     r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
-                store4(out, i, r)
+                E.store4(out, i, r)
 
 
 @rowloop(rows=2)
@@ -128,16 +127,16 @@ def _nlerp(p, q, t, shortest, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            ti = load1(t, i)
-            pi = load4(p, i)
-            qi = load4(q, i)
+            ti = E.load1(t, i)
+            pi = E.load4(p, i)
+            qi = E.load4(q, i)
             d = pi[0] * qi[0] + pi[1] * qi[1] + pi[2] * qi[2] + pi[3] * qi[3]
             s = like(ti, 1.0) - ti
             tol = tie_band(ti) * like(ti, 0.5) * (E.qdot(pi, pi) + E.qdot(qi, qi))
             flip = flip_rule(pi, qi, d, tol, tol)[0] & (shortest > like(ti, 0.0))  # the tie rule of _slerp
             # −t when q is flipped into p's hemisphere; 0 or 2 from the boolean (no select)
             ts = ti - like(ti, 2.0) * flip * ti
-            store4(out, i, nlerp4(pi, qi, s, ts))
+            E.store4(out, i, nlerp4(pi, qi, s, ts))
 
 
 @rowloop(rows=2)
@@ -147,18 +146,18 @@ def _lerp(p, q, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            ti = load1(t, i)
-            pi = load4(p, i)
-            qi = load4(q, i)
+            ti = E.load1(t, i)
+            pi = E.load4(p, i)
+            qi = E.load4(q, i)
             s = like(ti, 1.0) - ti
-            store4(out, i, lerp4(pi, qi, s, ti))
+            E.store4(out, i, lerp4(pi, qi, s, ti))
 
 
 @rowloop
 def _unflip_signs(p, q, out):
     """:func:`quatarray._slerp.unflip_sign` of rows (for the Dask sign scans)."""
     for i in prange(p.shape[0]):
-        out[i] = unflip_sign(load4(p, i), load4(q, i))
+        out[i] = unflip_sign(E.load4(p, i), E.load4(q, i))
 
 
 def unflip_signs(p, q):
@@ -174,7 +173,7 @@ def _double(p, q, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            store4(out, i, double4(load4(p, i), load4(q, i)))
+            E.store4(out, i, double4(E.load4(p, i), E.load4(q, i)))
 
 
 @rowloop
@@ -184,7 +183,7 @@ def _bisect(p, q, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            store4(out, i, bisect4(load4(p, i), load4(q, i)))
+            E.store4(out, i, bisect4(E.load4(p, i), E.load4(q, i)))
 
 
 @rowloop(rows=1)
@@ -198,9 +197,9 @@ def _bezier_controls(q, f_out, f_in, a, b):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for j in range(min(n - lo, ROWS)):
             i = lo + j
-            r = controls4(load4(q, i), load4(q, i + 1), load4(q, i + 2), load1(f_out, i), load1(f_in, i))
-            store4(a, i, r[0])
-            store4(b, i, r[1])
+            r = controls4(E.load4(q, i), E.load4(q, i + 1), E.load4(q, i + 2), E.load1(f_out, i), E.load1(f_in, i))
+            E.store4(a, i, r[0])
+            E.store4(b, i, r[1])
 
 
 def _double_row(p, q):
@@ -227,7 +226,7 @@ def _bezier(q0, a, b, q1, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            store4(out, i, bezier4(load4(q0, i), load4(a, i), load4(b, i), load4(q1, i), load1(t, i)))
+            E.store4(out, i, bezier4(E.load4(q0, i), E.load4(a, i), E.load4(b, i), E.load4(q1, i), E.load1(t, i)))
 
 
 @rowloop(rows=4)
@@ -237,7 +236,7 @@ def _squad(q0, s0, s1, q1, t, out):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k
-            store4(out, i, squad4(load4(q0, i), load4(s0, i), load4(s1, i), load4(q1, i), load1(t, i)))
+            E.store4(out, i, squad4(E.load4(q0, i), E.load4(s0, i), E.load4(s1, i), E.load4(q1, i), E.load1(t, i)))
 
 
 @kernel
@@ -555,7 +554,7 @@ def _squad_inner(q, s):
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for k in range(min(n - lo, ROWS)):
             i = lo + k + 1
-            store4(s, i, squad_inner4(load4(q, i - 1), load4(q, i), load4(q, i + 1)))
+            E.store4(s, i, squad_inner4(E.load4(q, i - 1), E.load4(q, i), E.load4(q, i + 1)))
 
 
 def squad(q0, s0, s1, q1, t, out=None):

@@ -1,6 +1,6 @@
 """What a convert or resample job is, for the command line and the Dask file jobs alike.
 
-:mod:`quatarray.cli` (one process, chunk by chunk) and
+:mod:`quatarray.app.cli` (one process, chunk by chunk) and
 :mod:`quatarray.dask.files` (``--scheduler``, block by block on workers)
 run the same jobs; what those are is written once, here:
 
@@ -14,9 +14,10 @@ run the same jobs; what those are is written once, here:
   :func:`resample_stream`).
 
 Errors are those of :mod:`quatarray.io.errors`: a :class:`~quatarray.io.UsageError`
-(a bad option, exit status 2) or a :class:`~quatarray.io.DataError` (bad
-data, exit status 1). They stay defined there, in the lowest layer, because
-the readers and writers raise them too.
+(a request that cannot be carried out: a bad option value) or a
+:class:`~quatarray.io.DataError` (bad data). They stay defined there, in the
+lowest layer, because the readers and writers raise them too; the command line
+maps them to its exit statuses.
 """
 
 import numpy as np

@@ -154,7 +154,7 @@ class Clip:
         Examples
         --------
         >>> from quatarray import io
-        >>> from quatarray.demo import sample_path
+        >>> from quatarray.io import sample_path
         >>> q, p = io.read_bvh(sample_path()).world()
         >>> q.shape, p.shape
         ((455, 24, 4), (455, 24, 3))
@@ -213,7 +213,7 @@ class Clip:
         Examples
         --------
         >>> from quatarray import io
-        >>> from quatarray.demo import sample_path
+        >>> from quatarray.io import sample_path
         >>> clip = io.read_bvh(sample_path())
         >>> clip.resample(rate=120)
         <Clip: 24 joints (5 end sites), 1816 frames at 120 fps>
@@ -284,7 +284,7 @@ class Clip:
         Examples
         --------
         >>> from quatarray import io
-        >>> from quatarray.demo import sample_path
+        >>> from quatarray.io import sample_path
         >>> print("\\n".join(io.read_bvh(sample_path()).tree()[:3]))
         Hips  ZXY + XYZ position
           Chest  ZXY

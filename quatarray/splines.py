@@ -56,7 +56,6 @@ import numpy as np
 
 from . import _cubic
 from . import _elements as E
-from ._access import load1, load4, loads, store1, store4, stores
 from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
@@ -126,7 +125,7 @@ def put_arc(seg, n, c, p, q):
     th, v, sgn, rare = arc_fast(p, q, like(p[0], 0.0))
     if rare:  # nearly antipodal, identical or nan ends (the table's loop is scalar: a branch costs nothing)
         th, v, sgn = arc(p, q, like(p[0], 0.0))
-    stores(seg, NSEG * n + c, (th, v[0], v[1], v[2], v[3]))
+    E.stores(seg, NSEG * n + c, (th, v[0], v[1], v[2], v[3]))
 
 
 KIND = 1  # rebound in each method's copy of _segments (see _SEGMENTS)
@@ -140,19 +139,19 @@ def _segments(q, c_out, c_in, seg):
     ``KIND`` is a constant of each method's compiled copy, so each compiles only
     the arcs it writes."""
     for n in prange(seg.shape[0]):
-        p = load4(q, n)
-        r = load4(q, n + 1)
-        a = load4(c_out, n)
-        b = load4(c_in, n + 1)
-        stores(seg, NSEG * n, p)
-        stores(seg, NSEG * n + 4, a)
-        stores(seg, NSEG * n + 8, b)
-        stores(seg, NSEG * n + 12, r)
+        p = E.load4(q, n)
+        r = E.load4(q, n + 1)
+        a = E.load4(c_out, n)
+        b = E.load4(c_in, n + 1)
+        E.stores(seg, NSEG * n, p)
+        E.stores(seg, NSEG * n + 4, a)
+        E.stores(seg, NSEG * n + 8, b)
+        E.stores(seg, NSEG * n + 12, r)
         # the fixed arcs, in a loop: one inlined copy of put_arc (arc_fast and arc), not three
         for k in range(3 if KIND == 1 else 2 if KIND == 2 else 1 if KIND == 0 else 0):
             c0 = NSEG * n + 4 * k  # from quaternion k of the row to quaternion k + 1 (Bézier) or 3 − k
             c1 = NSEG * n + (4 * k + 4 if KIND == 1 else 12 - 4 * k)
-            put_arc(seg, n, 16 + 5 * k, loads(seg, c0, 4), loads(seg, c1, 4))
+            put_arc(seg, n, 16 + 5 * k, E.loads(seg, c0, 4), E.loads(seg, c1, 4))
 
 
 @inline
@@ -193,8 +192,8 @@ def next_run(times, new_t, j, hi, n):
 @inline
 def seg_keys(seg, n):
     """The four quaternions of a table row (starting at flat element n): q_n, its two
-    controls, q_{n+1}. A fixed arc of the row is ``loads(seg, n + c, 5)``, (θ, v) at column c."""
-    return loads(seg, n, 4), loads(seg, n + 4, 4), loads(seg, n + 8, 4), loads(seg, n + 12, 4)
+    controls, q_{n+1}. A fixed arc of the row is ``E.loads(seg, n + c, 5)``, (θ, v) at column c."""
+    return E.loads(seg, n, 4), E.loads(seg, n + 4, 4), E.loads(seg, n + 8, 4), E.loads(seg, n + 12, 4)
 
 
 # Segment table columns: 0-3 q_n, 4-7 first control, 8-11 second control,
@@ -264,22 +263,22 @@ def _segment(times, seg, sg):
 @ir_inline
 def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
-    p = loads(seg, n, 4)
-    q = loads(seg, n + 12, 4)
-    c = loads(seg, n + 16, 5)
+    p = E.loads(seg, n, 4)
+    q = E.loads(seg, n + 12, 4)
+    c = E.loads(seg, n + 16, 5)
     for i in range(j, e):
-        store4(out, i, arc_slerp(p, q, c, like(x0, (load1(new_t, i) - t0) / h)))
+        E.store4(out, i, arc_slerp(p, q, c, like(x0, (E.load1(new_t, i) - t0) / h)))
     return e, count
 
 
 @ir_inline
 def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
-    p = loads(seg, n, 4)
-    q = loads(seg, n + 12, 4)
+    p = E.loads(seg, n, 4)
+    q = E.loads(seg, n + 12, 4)
     for i in range(j, e):
-        t = like(x0, (load1(new_t, i) - t0) / h)
-        store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
+        t = like(x0, (E.load1(new_t, i) - t0) / h)
+        E.store4(out, i, nlerp4(p, q, like(t, 1.0) - t, t))
     return e, count
 
 
@@ -287,26 +286,26 @@ def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
 def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     q0, s0, s1, q1 = seg_keys(seg, n)
-    c0 = loads(seg, n + 16, 5)
-    c1 = loads(seg, n + 21, 5)
+    c0 = E.loads(seg, n + 16, 5)
+    c1 = E.loads(seg, n + 21, 5)
     for i in range(j, e):
-        t = like(x0, (load1(new_t, i) - t0) / h)
+        t = like(x0, (E.load1(new_t, i) - t0) / h)
         pq = arc_slerp(q0, q1, c0, t)
         ps = arc_slerp(s0, s1, c1, t)
-        store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
+        E.store4(out, i, slerp4(pq, ps, like(t, 2.0) * t * (like(t, 1.0) - t), like(t, 0.0)))
     return e, count
 
 
 @inline
 def tile_q(tile, c, lane):
-    return (load1(tile, c * TILE + lane), load1(tile, (c + 1) * TILE + lane),
-            load1(tile, (c + 2) * TILE + lane), load1(tile, (c + 3) * TILE + lane))
+    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane),
+            E.load1(tile, (c + 2) * TILE + lane), E.load1(tile, (c + 3) * TILE + lane))
 
 
 @inline
 def tile_arc(tile, c, lane):
-    return (load1(tile, c * TILE + lane), load1(tile, (c + 1) * TILE + lane), load1(tile, (c + 2) * TILE + lane),
-            load1(tile, (c + 3) * TILE + lane), load1(tile, (c + 4) * TILE + lane))
+    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane), E.load1(tile, (c + 2) * TILE + lane),
+            E.load1(tile, (c + 3) * TILE + lane), E.load1(tile, (c + 4) * TILE + lane))
 
 
 @kernel
@@ -318,11 +317,11 @@ def bezier_tile(out, state, count):
     tile, u, res, rows = state
     for lane in range(count):
         r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
-                       tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), load1(u, lane))
-        store1(res, lane, r[0])
-        store1(res, TILE + lane, r[1])
-        store1(res, 2 * TILE + lane, r[2])
-        store1(res, 3 * TILE + lane, r[3])
+                       tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), E.load1(u, lane))
+        E.store1(res, lane, r[0])
+        E.store1(res, TILE + lane, r[1])
+        E.store1(res, 2 * TILE + lane, r[2])
+        E.store1(res, 3 * TILE + lane, r[3])
     for lane in range(count):
         for c in range(4):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
@@ -403,7 +402,7 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
 @inline
 def _arc_rate(seg, n, c, p):
     """The constant body rate per unit u of the fixed arc at column c of a table row."""
-    a = loads(seg, n + c, 5)
+    a = E.loads(seg, n + c, 5)
     return arc_rotvec(p, a[0], (a[1], a[2], a[3], a[4]))
 
 
@@ -426,7 +425,7 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
     w1 = _arc_rate(seg, n, 21, a)
     w2 = _arc_rate(seg, n, 26, b)
     for i in range(j, e):
-        u = like(x0, (load1(new_t, i) - t0) / h)
+        u = like(x0, (E.load1(new_t, i) - t0) / h)
         if KIND == 0:
             v = w0 if ORDER == 1 else zero3
         if KIND == 3:
@@ -440,8 +439,8 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             if ORDER == 2:
                 v = E.vscale(v, -like(x0, 2.0) * E.qdot(c, dq) / cc)
         if KIND == 2:
-            pq = arc_slerp(q0, q1, loads(seg, n + 16, 5), u)
-            ps = arc_slerp(a, b, loads(seg, n + 21, 5), u)
+            pq = arc_slerp(q0, q1, E.loads(seg, n + 16, 5), u)
+            ps = arc_slerp(a, b, E.loads(seg, n + 21, 5), u)
             w = like(x0, 2.0) * u * (one - u)
             dw = like(x0, 2.0) - like(x0, 4.0) * u
             if ORDER == 1:
@@ -449,9 +448,9 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             else:
                 v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
         if KIND == 1:
-            p01 = arc_slerp(q0, a, loads(seg, n + 16, 5), u)
-            p12 = arc_slerp(a, b, loads(seg, n + 21, 5), u)
-            p23 = arc_slerp(b, q1, loads(seg, n + 26, 5), u)
+            p01 = arc_slerp(q0, a, E.loads(seg, n + 16, 5), u)
+            p12 = arc_slerp(a, b, E.loads(seg, n + 21, 5), u)
+            p23 = arc_slerp(b, q1, E.loads(seg, n + 26, 5), u)
             if ORDER == 1:
                 s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
                 s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
@@ -460,9 +459,9 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
                 s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
                 s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
                 v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
-        store1(out, 3 * i, v[0] * scale)
-        store1(out, 3 * i + 1, v[1] * scale)
-        store1(out, 3 * i + 2, v[2] * scale)
+        E.store1(out, 3 * i, v[0] * scale)
+        E.store1(out, 3 * i + 1, v[1] * scale)
+        E.store1(out, 3 * i + 2, v[2] * scale)
     return e, count
 
 
@@ -475,19 +474,19 @@ def _run_cubic(times, new_t, data, out, sg, j, e, state, count):
     keys, coef = data
     t0 = times[sg]
     x0 = like(coef, 0.0)
-    qn = load4(keys, sg)
+    qn = E.load4(keys, sg)
     b = _cubic.NCOEF * sg
     c0 = (coef[b], coef[b + 1], coef[b + 2])
     c1 = (coef[b + 3], coef[b + 4], coef[b + 5])
     c2 = (coef[b + 6], coef[b + 7], coef[b + 8])
     for i in range(j, e):
-        tau = like(x0, load1(new_t, i) - t0)
+        tau = like(x0, E.load1(new_t, i) - t0)
         rv = (((c0[0] * tau + c1[0]) * tau + c2[0]) * tau, ((c0[1] * tau + c1[1]) * tau + c2[1]) * tau,
               ((c0[2] * tau + c1[2]) * tau + c2[2]) * tau)
         n2 = rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]
         hs, hc = sincos(like(x0, 0.5) * np.sqrt(n2))
         if ORDER == 0:
-            store4(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
+            E.store4(out, i, E.qmul(qn, qexp_half(rv, n2, hs, hc)))
         else:
             three = like(x0, 3.0)
             two = like(x0, 2.0)
@@ -505,9 +504,9 @@ def _run_cubic(times, new_t, data, out, sg, j, e, state, count):
                 a = jac(rv, k1, k2, rdd)
                 nl = jac_dot(rv, rd, j1, j2, k2)
                 v = (a[0] + nl[0], a[1] + nl[1], a[2] + nl[2])
-            store1(out, 3 * i, v[0])
-            store1(out, 3 * i + 1, v[1])
-            store1(out, 3 * i + 2, v[2])
+            E.store1(out, 3 * i, v[0])
+            E.store1(out, 3 * i + 1, v[1])
+            E.store1(out, 3 * i + 2, v[2])
     return e, count
 
 

@@ -27,7 +27,6 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._access import load33, store33
 from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
 from ._trace import select, traced
@@ -94,7 +93,7 @@ _apply_vqs = E.FarRows(_apply_vqs_plain, _apply_vqs_scaled, "apply_vqs")
 @rowloop
 def _apply_vqm(v, q, m, p, out):
     for i in prange(p.shape[0]):
-        r = matvec(load33(m, i), E.load3(p, i))
+        r = matvec(E.load33(m, i), E.load3(p, i))
         E.store3(out, i, E.vadd(E.qrotate(E.load4(q, i), r), E.load3(v, i)))
 
 
@@ -139,14 +138,14 @@ def _compose_vqm(va, qa, ma, vb, qb, mb, vo, qo, mo):
     for i in prange(va.shape[0]):
         qa_ = E.load4(qa, i)
         qb_ = E.load4(qb, i)
-        ma_ = load33(ma, i)
+        ma_ = E.load33(ma, i)
         rb = E.qmatrix(qb_)
         v = E.vadd(E.qrotate(qa_, matvec(ma_, E.load3(vb, i))), E.load3(va, i))
         q = E.qmul(qa_, qb_)
-        m = matmul(transpose(rb), matmul(ma_, matmul(rb, load33(mb, i))))  # R_bᵀ M_a R_b M_b
+        m = matmul(transpose(rb), matmul(ma_, matmul(rb, E.load33(mb, i))))  # R_bᵀ M_a R_b M_b
         E.store3(vo, i, v)
         E.store4(qo, i, q)
-        store33(mo, i, m)
+        E.store33(mo, i, m)
 
 
 @rowloop
@@ -166,12 +165,12 @@ def _inverse_vqm(v, q, m, vo, qo, mo, ratio):
         q_ = E.load4(q, i)
         r = E.qmatrix(q_)
         rt = transpose(r)
-        inv, c = _mat_inverse(load33(m, i))
+        inv, c = _mat_inverse(E.load33(m, i))
         # [v, q, M]⁻¹ = [−M⁻¹ Rᵀ v, q⁻¹, R M⁻¹ Rᵀ]
         vi = matvec(inv, matvec(rt, E.load3(v, i)))
         E.store3(vo, i, E.vscale(vi, like(c, -1.0)))
         E.store4(qo, i, E.qinverse(q_))
-        store33(mo, i, matmul(r, matmul(inv, rt)))
+        E.store33(mo, i, matmul(r, matmul(inv, rt)))
         ratio[i] = c
 
 
@@ -193,7 +192,7 @@ def _matrix_vqs(v, q, s, out):
 @rowloop
 def _matrix_vqm(v, q, m, out):
     for i in prange(v.shape[0]):
-        _store_homogeneous(out, i, matmul(E.qmatrix(E.load4(q, i)), load33(m, i)), E.load3(v, i))
+        _store_homogeneous(out, i, matmul(E.qmatrix(E.load4(q, i)), E.load33(m, i)), E.load3(v, i))
 
 
 @rowloop
@@ -213,7 +212,7 @@ def _lerp_vm(va, ma, vb, mb, t, vo, mo):
         t_ = t[i]
         u = like(t_, 1.0) - t_
         E.store3(vo, i, E.vadd(E.vscale(E.load3(va, i), u), E.vscale(E.load3(vb, i), t_)))
-        store33(mo, i, lerp9(load33(ma, i), load33(mb, i), u, t_))
+        E.store33(mo, i, lerp9(E.load33(ma, i), E.load33(mb, i), u, t_))
 
 
 # --------------------------------------------------------------------------

@@ -199,7 +199,7 @@ def _quaternion_calls(qa, name):
 def _clip_calls(qa, what):
     def run():
         from quatarray import _warmup, io, skeleton
-        from quatarray.demo import sample_path
+        from quatarray.io import sample_path
 
         clip = _warmup._clip(qa, _warmup._samples("float64"))
         walk = io.read_bvh(sample_path())
@@ -282,7 +282,7 @@ def _verb_calls(qa, verb):
     """A command-line verb on small files, its usual options."""
     def run():
         from quatarray import _warmup, io
-        from quatarray.cli import main
+        from quatarray.app.cli import main
 
         s = _warmup._samples("float64")
         ref, est = _warmup._poses(qa, s)
@@ -335,7 +335,7 @@ def public_entry_points():
 
     import quatarray as qa
     from quatarray import trajectory as T
-    from quatarray.cli import build_parser
+    from quatarray.app.cli import build_parser
 
     names = [n for n in qa.__all__ if n != "warmup"]
     names += [f"trajectory.{n}" for n, f in vars(T).items()

@@ -102,7 +102,7 @@ def test_utm_offsets_ape_is_exact(rng, align, tmp_path):
     for k, v in (("min", exact.min()), ("max", exact.max()), ("rmse", np.sqrt(np.mean(exact ** 2)))):
         assert r.stats[k] == pytest.approx(v, rel=1e-10), k
     # the chunked pass over pose arrays gives the same numbers
-    from quatarray.evaluate import PoseFile, run_chunked
+    from quatarray.app.eval_verb import PoseFile, run_chunked
 
     for name, p in (("ref", ref), ("est", est)):
         np.save(tmp_path / f"{name}.npy", np.c_[p.t, p.pos, p.q])
@@ -278,7 +278,7 @@ def test_interpolate_spline_rule_by_name(rng):
 
 
 def _cli(capsys, *argv):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     rc = main([str(a) for a in argv])
     out, err = capsys.readouterr()

@@ -437,7 +437,7 @@ def test_pose_spline_rules():
 
 
 def test_cli_resample_poses_screw(tmp_path):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     rng = np.random.default_rng(14)
     times = np.cumsum(rng.uniform(0.05, 0.15, 12))
@@ -486,7 +486,7 @@ def test_quaternions_of_any_scale(scale):
 def test_real_pose_streams_screw(data_dir, tmp_path):
     """TUM and EuRoC ground truth resampled with --poses screw: the TUM poses are
     sclerp of the keys around each new time; both streams come out unit and continuous."""
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     for name, rate in (("tum_freiburg1_xyz_groundtruth.txt", 45), ("euroc_v102_groundtruth.csv", 70)):
         dst = tmp_path / (name + ".csv")

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 import quatarray as qa
 from quatarray import io
-from quatarray.demo import sample_path
+from quatarray.io import sample_path
 from quatarray.skeleton import Clip
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]

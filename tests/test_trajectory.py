@@ -16,8 +16,8 @@ import pytest
 
 import quatarray as qa
 from quatarray import trajectory as T
-from quatarray.cli import main
-from quatarray.evaluate import PoseFile, read_poses, run_chunked
+from quatarray.app.cli import main
+from quatarray.app.eval_verb import PoseFile, read_poses, run_chunked
 
 evo = pytest.importorskip("evo", reason="evo (the test extra) is needed to compare with it")
 from evo.core import metrics, sync  # noqa: E402

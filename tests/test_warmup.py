@@ -283,7 +283,7 @@ def test_in_background_bad_arguments():
 
 
 def test_command_line_verb():
-    from quatarray.cli import build_parser, cmd_warmup
+    from quatarray.app.cli import build_parser, cmd_warmup
 
     args = build_parser().parse_args(["warmup", "--dtype", "float32"])
     assert (args.func, args.dtype) == (cmd_warmup, "float32")

@@ -2,7 +2,7 @@
 import numpy as np
 import matplotlib.pyplot as plt
 from quatarray import io
-from quatarray.demo import sample_path
+from quatarray.io import sample_path
 
 clip = io.read_bvh(sample_path())
 _, p = clip.world()

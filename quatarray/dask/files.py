@@ -316,8 +316,8 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
 
     Returns
     -------
-    int
-        0 (the command line's exit status).
+    str
+        DST, written.
     """
     err = sys.stderr if err is None else err
     _check_files(src, dst, force)
@@ -334,7 +334,7 @@ def convert_file(src, dst, to, *, degrees=False, layout="wxyz", chunk=1_000_000,
             figures = _compute_all(tasks, opts)
     _report(reader, figures, bad.size, err)
     gimbal_note(reader.name, sum(f[2] for f in figures), err)
-    return 0
+    return str(dst)
 
 
 # --------------------------------------------------------------------------
@@ -444,8 +444,8 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
 
     Returns
     -------
-    int
-        0 (the command line's exit status).
+    str
+        DST, written.
     """
     _check_files(src, dst, force)
     err = sys.stderr if err is None else err
@@ -492,7 +492,7 @@ def resample_file(src, dst, *, rate=None, times=None, method="bezier", chunk=1_0
             done = _compute_all([_store(lazy, target).sum()] + figures, opts, independent=False)
     if figures:
         _report(reader, done[1], dropped, err)
-    return 0
+    return str(dst)
 
 
 __all__ = ["scheduler_options", "local_cluster", "convert_file", "resample_file"]

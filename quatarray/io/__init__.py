@@ -1,6 +1,6 @@
 """Reading and writing rotation streams, chunk by chunk.
 
-Kept apart from the command line (:mod:`quatarray.cli`) so the readers and
+Kept apart from the command line (:mod:`quatarray.app.cli`) so the readers and
 writers can be used on their own::
 
     from quatarray import io
@@ -21,7 +21,7 @@ checks); ``writers`` (stream outputs) and ``targets`` (block-by-block
 outputs of the Dask file jobs); ``formats`` and ``errors``.
 """
 
-from .bvh import read_bvh, write_bvh
+from .bvh import read_bvh, sample_path, write_bvh
 from .clean import Cleaner
 from .errors import DataError, OutputError, UsageError
 from .formats import FORMATS, output_format
@@ -31,6 +31,6 @@ from .writers import Writer, check_output, open_writer, output_mode
 
 __all__ = [
     "Chunk", "Cleaner", "DataError", "OutputError", "UsageError", "Writer", "FORMATS", "DEFAULT_CHUNK",
-    "open_stream", "read_times", "read_bvh", "write_bvh", "open_writer", "check_output", "output_mode",
+    "open_stream", "read_times", "read_bvh", "write_bvh", "sample_path", "open_writer", "check_output", "output_mode",
     "output_format", "concat", "rechunk",
 ]

@@ -185,7 +185,7 @@ def read_bvh(path, name=None):
     Examples
     --------
     >>> from quatarray import io
-    >>> from quatarray.demo import sample_path
+    >>> from quatarray.io import sample_path
     >>> clip = io.read_bvh(sample_path())
     >>> clip.joints[:3], clip.orders[0], clip.rotations.shape, clip.frame_time
     (['Hips', 'Chest', 'Chest2'], 'ZXY', (455, 24, 4), 0.033333)
@@ -465,7 +465,7 @@ def write_bvh(path, clip):
     --------
     >>> import os, tempfile, numpy as np, quatarray as qa
     >>> from quatarray import io
-    >>> from quatarray.demo import sample_path
+    >>> from quatarray.io import sample_path
     >>> clip = io.read_bvh(sample_path())
     >>> out = os.path.join(tempfile.mkdtemp(), "walk.bvh")
     >>> io.write_bvh(out, clip)
@@ -570,7 +570,7 @@ def write_positions(path, clip, fmt=None):
     --------
     >>> import os, tempfile, numpy as np
     >>> from quatarray import io
-    >>> from quatarray.demo import sample_path
+    >>> from quatarray.io import sample_path
     >>> out = os.path.join(tempfile.mkdtemp(), "p.npy")
     >>> io.bvh.write_positions(out, io.read_bvh(sample_path()))
     >>> np.load(out).shape
@@ -764,3 +764,18 @@ class BvhReader(Reader):
             q[fin] = from_euler(self.euler, ang[fin], degrees=True)
             pos = m[:, self.pos_idx] if self.pos_idx else None
             yield Chunk(q, t_all[a : a + len(m)], pos, int(idx[a]))
+
+
+def sample_path():
+    """Path of the motion-capture sample (a BVH clip) that ships with the package,
+    the input of ``quatarray demo``.
+
+    Examples
+    --------
+    >>> from quatarray.io import sample_path, read_bvh
+    >>> read_bvh(sample_path()).rotations.ndim
+    3
+    """
+    from importlib import resources
+
+    return str(resources.files("quatarray").joinpath("data", "mocapbank_walk.bvh"))

@@ -1,18 +1,22 @@
-"""The two kinds of user error the command line reports without a traceback."""
+"""What can go wrong with the user's files and requests, as exceptions that say it.
+
+The library raises them with a one-line message naming the file, the row or
+the option and what is wrong; it does not decide what a program does with
+them. The command line (:mod:`quatarray.app.cli`) prints the line and maps the
+class to its exit status (:data:`quatarray.app.cli.EXIT_STATUS`).
+"""
 
 
 class DataError(Exception):
-    """Bad data in an input file (exit status 1).
-
-    The message is one line that names the file, the line or row, and what
-    is wrong, e.g. ``walk.csv:1234: expected 8 numbers, got 7``.
-    """
+    """Bad data in an input: the message names the file, the line or row, and what
+    is wrong, e.g. ``walk.csv:1234: expected 8 numbers, got 7``."""
 
 
 class UsageError(Exception):
-    """A bad command line or a refused operation (exit status 2)."""
+    """A request that cannot be carried out as asked: a bad option value, an output
+    of the wrong kind, a feature that needs a package that is not installed."""
 
 
 class OutputError(UsageError):
-    """OUT cannot be written: an unwritable folder, a full disk, a file-size limit
-    (exit status 2, as a refused operation: the data are fine)."""
+    """An output cannot be written: an unwritable folder, a full disk, a file-size
+    limit (the data are fine)."""

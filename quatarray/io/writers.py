@@ -23,7 +23,7 @@ from .formats import is_zarr
 def check_output(out, inputs=(), force=False):
     """Refuse OUT when it is one of the inputs, or exists without ``force``.
 
-    Raises :class:`~quatarray.io.UsageError` (exit status 2 on the command line).
+    Raises :class:`~quatarray.io.UsageError`.
 
     Examples
     --------

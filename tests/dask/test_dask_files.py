@@ -33,12 +33,12 @@ def npy_stream(tmp_path_factory):
 
 @pytest.mark.parametrize("to", ["quat", "xyzw", "matrix", "rotvec", "axis-angle", "euler:ZXY"])
 def test_convert_file_equals_cli(client, npy_stream, to, capsys):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     src, dst, ref = npy_stream / "q.npy", npy_stream / f"d-{to}.npy", npy_stream / f"m-{to}.npy"
     extra = ["--degrees"] if to in ("rotvec", "euler:ZXY") else []
     assert main(["convert", str(src), str(ref), "--to", to, "--chunk", "700", *extra]) == 0
-    assert qd.convert_file(src, dst, to, degrees=bool(extra), chunk=700, scheduler=client) == 0
+    assert qd.convert_file(src, dst, to, degrees=bool(extra), chunk=700, scheduler=client) == str(dst)
     assert same(np.load(dst), np.load(ref))
     assert "normalised 5000 non-unit quaternions" in capsys.readouterr().err
 
@@ -72,13 +72,13 @@ def test_convert_file_errors_leave_no_output(client, npy_stream):
 @needs("interpolation")
 @pytest.mark.parametrize("method", ["bezier", "slerp"])
 def test_resample_file_equals_cli(client, npy_stream, method):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     src = npy_stream / "q.npy"
     dst, ref = npy_stream / f"r-{method}.npy", npy_stream / f"rm-{method}.npy"
     assert main(["resample", str(src), str(ref), "--rate", "7", "--in-rate", "2", "--method", method,
                  "--chunk", "800", "--force"]) == 0
-    assert qd.resample_file(src, dst, rate=7, in_rate=2, method=method, chunk=800, scheduler=client) == 0
+    assert qd.resample_file(src, dst, rate=7, in_rate=2, method=method, chunk=800, scheduler=client) == str(dst)
     got, expect = np.load(dst), np.load(ref)
     assert got.shape == expect.shape == (17497, 4)  # 0 … 2499.5 s at 7 Hz
     np.testing.assert_allclose(got, expect, rtol=0, atol=1e-13)
@@ -127,7 +127,7 @@ def _read_zarr(path):
 
 @pytest.mark.parametrize("out", ["npy", "zarr"])
 def test_convert_file_drop_equals_cli(client, npy_stream, out, capsys):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     if out == "zarr":
         pytest.importorskip("zarr")
@@ -138,7 +138,7 @@ def test_convert_file_drop_equals_cli(client, npy_stream, out, capsys):
     expect_err = capsys.readouterr().err
     assert f"dropped {nbad} invalid rows" in expect_err
     dst = npy_stream / f"holes-d.{out}"
-    assert qd.convert_file(src, dst, "euler:ZYX", chunk=700, scheduler=client, on_invalid="drop") == 0
+    assert qd.convert_file(src, dst, "euler:ZYX", chunk=700, scheduler=client, on_invalid="drop") == str(dst)
     got, chunks = _read_zarr(dst) if out == "zarr" else (np.load(dst), None)
     assert got.shape == (5000 - nbad, 3)
     assert same(got, np.load(ref))
@@ -153,7 +153,7 @@ def test_convert_file_blocks_of_many_pieces(client, tmp_path, on_invalid, capsys
     """Blocks longer than the command line's pieces: an npy target takes them piece by
     piece (the last one short; with drop, pieces shortened by their bad rows, one
     piece all bad), each at its place in the file."""
-    from quatarray.cli import main
+    from quatarray.app.cli import main
     from quatarray.jobs import ROWS_PER_PIECE
 
     n = 3 * ROWS_PER_PIECE + 123
@@ -166,7 +166,7 @@ def test_convert_file_blocks_of_many_pieces(client, tmp_path, on_invalid, capsys
     assert main(["convert", str(src), str(ref), "--to", "euler:ZYX", "--on-invalid", on_invalid]) == 0
     capsys.readouterr()
     chunk = 2 * ROWS_PER_PIECE + 5
-    assert qd.convert_file(src, dst, "euler:ZYX", chunk=chunk, scheduler=client, on_invalid=on_invalid) == 0
+    assert qd.convert_file(src, dst, "euler:ZYX", chunk=chunk, scheduler=client, on_invalid=on_invalid) == str(dst)
     assert same(np.load(dst), np.load(ref))
 
 
@@ -183,7 +183,7 @@ def test_convert_file_zarr_in_and_out(client, npy_stream):
         np.testing.assert_allclose(got, qa.as_matrix(qa.normalize(q)), rtol=0, atol=1e-15)
     assert sorted(p.name for p in npy_stream.iterdir() if "m.zarr" in p.name) == ["m.zarr"]
     # the command line's in-memory path reads a zarr store too
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     assert main(["convert", str(src), str(npy_stream / "m1.npy"), "--to", "matrix", "--layout", "xyzw"]) == 0
     assert same(np.load(npy_stream / "m1.npy"), got)
@@ -226,7 +226,7 @@ def test_resample_key_times_made_by_the_workers(bad):
 
 
 def test_resample_file_drop_zarr_equals_cli(client, npy_stream, capsys):
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     q, nbad = _bad_stream(seed=13)
     np.save(npy_stream / "kholes.npy", q)
@@ -236,7 +236,7 @@ def test_resample_file_drop_zarr_equals_cli(client, npy_stream, capsys):
                  "--on-invalid", "drop", "--chunk", "900", "--force"]) == 0
     assert f"dropped {nbad} invalid rows" in capsys.readouterr().err
     dst = npy_stream / "kholes-r.zarr"
-    assert qd.resample_file(src, dst, rate=7, in_rate=2, chunk=800, scheduler=client, on_invalid="drop") == 0
+    assert qd.resample_file(src, dst, rate=7, in_rate=2, chunk=800, scheduler=client, on_invalid="drop") == str(dst)
     assert f"dropped {nbad} invalid rows" in capsys.readouterr().err
     got, chunks = _read_zarr(dst)
     assert chunks == (800, 4)
@@ -331,7 +331,7 @@ def test_command_line_local_cluster(npy_stream, capsys):
     """``--scheduler local``: the command line starts (and stops) its own cluster, whose
     client is not the default one."""
     pytest.importorskip("zarr")
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     q, nbad = _bad_stream(seed=14)
     np.save(npy_stream / "cli.npy", q)
@@ -366,7 +366,7 @@ def test_empty_and_unknown_chunks(client):
 
 def test_gimbal_lock_counted_in_rows(npy_stream, capsys):
     """The note counts rows at gimbal lock, the same on threads, a cluster and in memory."""
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     q = stream(3000, seed=16)
     q[::100] = qa.from_euler("ZYX", [0.3, np.pi / 2, 0.2])  # 30 rows at gimbal lock
@@ -385,10 +385,10 @@ def test_gimbal_lock_counted_in_rows(npy_stream, capsys):
 def test_resample_file_notes_and_text_drop(npy_stream, tmp_path, capsys):
     """Resample on the workers reports normalised keys like the command line, and a text
     file without times keeps each row's own time when bad rows are dropped."""
-    from quatarray.cli import main
+    from quatarray.app.cli import main
 
     src = npy_stream / "q.npy"  # slightly non-unit keys
-    assert qd.resample_file(src, tmp_path / "r.npy", rate=3, in_rate=2, chunk=900) == 0
+    assert qd.resample_file(src, tmp_path / "r.npy", rate=3, in_rate=2, chunk=900) == str(tmp_path / "r.npy")
     assert "normalised 5000 non-unit quaternions" in capsys.readouterr().err
     q = stream(20, seed=17)
     lines = ["qw,qx,qy,qz"] + [",".join(str(float(v)) for v in row) for row in q]

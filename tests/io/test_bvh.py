@@ -8,7 +8,7 @@ from test_skeleton import ORDERS, pos_ch, rot_ch, six_orders_file
 
 import quatarray as qa
 from quatarray import io
-from quatarray.demo import sample_path
+from quatarray.io import sample_path
 from quatarray.io.bvh import exact_euler
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import quatarray as qa
-from test_cli import cli, run
+from cli_common import cli, run
 
 IMU_HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
               "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import quatarray as qa
-from quatarray import bench, demo, plot
+from quatarray.app import bench, demo, plot
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

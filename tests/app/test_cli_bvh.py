@@ -8,8 +8,8 @@ import pytest
 
 import quatarray as qa
 from quatarray import io
-from quatarray.cli import main
-from quatarray.demo import sample_path
+from quatarray.app.cli import main
+from quatarray.io import sample_path
 
 
 def cli(capsys, *argv):
