@@ -119,13 +119,15 @@ def _map(kernel, a, cin, cout):
 
 
 def _floats(x, name):
-    """`x` as a float32/float64 ndarray: the arrays the class holds pass as they are."""
-    if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32):
+    """`x` as a C-contiguous float32/float64 ndarray (the lean paths hand it to the
+    serial kernels as it is): the arrays the class holds pass as they are."""
+    if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32) and x.flags.c_contiguous:
         return x
     try:
-        return as_float(x, name)
+        a = as_float(x, name)
     except TypeError as exc:  # scipy: a ValueError for values that are not real numbers
         raise ValueError(str(exc)) from None
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
 
 
 def _shape_check(a, name, core, text):
@@ -137,12 +139,14 @@ def _shape_check(a, name, core, text):
 def _check_seq(seq, three):
     """scipy's checks (and messages) of an Euler sequence that is not one of the valid
     ones: 1 to 3 axes (exactly 3 when `three`), one case, no axis twice in a row."""
-    n = len(seq)  # TypeError for a non-sequence, as scipy
+    if not isinstance(seq, str):  # scipy: a TypeError (its pattern match of a non-string)
+        raise TypeError(f"Expected `seq` to be a string, got {type(seq).__name__} {seq!r}.")
+    n = len(seq)
     if three and n != 3:
         raise ValueError(f"Expected 3 axes, got {seq}.")
     if not 1 <= n <= 3:
         raise ValueError(f"Expected axis specification to be a non-empty string of upto 3 characters, got {seq}")
-    if not isinstance(seq, str) or not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
+    if not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
         raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or ['X', 'Y', 'Z'], got {seq}")
     if any(seq[i] == seq[i + 1] for i in range(n - 1)):
         raise ValueError(f"Expected consecutive axes to be different, got {seq}")
@@ -167,8 +171,11 @@ def _lead_shape(num, shape):
         return ()
     if isinstance(shape, (int, np.integer)) and not isinstance(shape, bool):
         return (int(shape),)
-    if isinstance(shape, tuple) and all(isinstance(k, (int, np.integer)) for k in shape):
-        return tuple(int(k) for k in shape)
+    if isinstance(shape, tuple):
+        try:
+            return tuple(operator.index(k) for k in shape)
+        except TypeError:  # scipy: a TypeError for a float in the tuple
+            raise TypeError(f"Expected `shape` to be a tuple of integers, got {shape!r}.") from None
     raise ValueError(f"`shape` must be an int or a tuple of ints, got {shape!r}.")
 
 
@@ -669,7 +676,7 @@ class Rotation:
                 if far[0]:
                     _eul._from_euler_far.serial(*args)
                 return Rotation._from_house(out[0], True)
-        if seq not in _eul._SEQS:
+        if type(seq) is not str or seq not in _eul._SEQS:
             _check_seq(seq, False)
         k = len(seq)
         if (a.shape[-1] if a.ndim else 1) != k:
@@ -718,7 +725,7 @@ class Rotation:
         >>> r.as_euler("zxy", degrees=True).round(9) + 0.0
         array([90., 45.,  0.])
         """
-        q = _dav.from_davenport(axes, order, angles, degrees=bool(degrees))
+        q = _dav.from_davenport(_floats(axes, "axes"), order, _floats(angles, "angles"), degrees=bool(degrees))
         return Rotation._from_house(q, q.ndim == 1)
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
@@ -1046,8 +1053,9 @@ class Rotation:
 
         As scipy 1.17 (its transition from ``random_state`` to ``rng``): a seed
         given by position, ``random(num, seed)``, or as ``random_state=`` seeds a
-        legacy ``RandomState``; ``rng=seed`` by keyword seeds ``default_rng``.
-        A ``Generator`` or ``RandomState`` is used as it is.
+        legacy ``RandomState`` (a ``Generator`` or ``RandomState`` given so is
+        used as it is); ``rng=`` by keyword goes through ``default_rng`` (a
+        ``RandomState`` there becomes a ``Generator`` on its bit generator).
 
         Examples
         --------
@@ -1063,12 +1071,12 @@ class Rotation:
         old = bool(legacy) or random_state is not None
         seed = seeds[0] if seeds else rng
         lead = _lead_shape(num, shape)
-        if isinstance(seed, (np.random.Generator, np.random.RandomState)):
+        if not old:  # `rng=` by keyword: scipy normalises it with default_rng (a RandomState
+            gen = np.random.default_rng(seed)  # becomes a Generator on its bit generator)
+        elif isinstance(seed, (np.random.Generator, np.random.RandomState)):
             gen = seed
-        elif old:
-            gen = np.random.mtrand._rand if seed is None else np.random.RandomState(seed)
         else:
-            gen = np.random.default_rng(seed)
+            gen = np.random.mtrand._rand if seed is None else np.random.RandomState(seed)
         sample = gen.normal(size=lead + _Q)
         return Rotation._from_house(_house_in(sample, False, "quat"), sample.ndim == 1)
 
@@ -1106,13 +1114,11 @@ class Rotation:
             w = _floats(weights, "weights")
             if w.ndim != 1:
                 raise ValueError(f"Expected `weights` to be 1 dimensional, got shape {w.shape}.")
-            if n > 1 and w.shape[0] != n:
+            if n >= 1 and w.shape[0] != n:  # scipy: also for one pair (its matmul's error)
                 raise ValueError(
                     "Expected `weights` to have number of values equal to number of input vectors, "
                     f"got {w.shape[0]} values and {n} vectors."
                 )
-            if n == 1:
-                w = w[:1]
             if np.any(w < 0):
                 raise ValueError("`weights` may not contain negative values")
             weights = w
@@ -1125,7 +1131,8 @@ class Rotation:
             k = int(np.argmax(inf)) if inf.any() else 0
             if not (np.any(a2[k] != 0) and np.any(b2[k] != 0)):
                 raise ValueError("Cannot align zero length primary vectors")
-        res = _align.align_vectors(a2, b2, weights, bool(return_sensitivity))
+        with np.errstate(invalid="ignore"):  # nan sensitivity of degenerate sets: silent, as scipy
+            res = _align.align_vectors(a2, b2, weights, bool(return_sensitivity))
         r = Rotation._from_house(res[0], True)
         return (r,) + tuple(res[1:])
 
