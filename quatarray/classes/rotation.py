@@ -139,13 +139,13 @@ def _shape_check(a, name, core, text):
 def _check_seq(seq, three):
     """scipy's checks (and messages) of an Euler sequence that is not one of the valid
     ones: 1 to 3 axes (exactly 3 when `three`), one case, no axis twice in a row."""
-    if not isinstance(seq, str):  # scipy: a TypeError (its pattern match of a non-string)
-        raise TypeError(f"Expected `seq` to be a string, got {type(seq).__name__} {seq!r}.")
-    n = len(seq)
+    n = len(seq)  # (a TypeError for a non-sequence, as scipy)
     if three and n != 3:
         raise ValueError(f"Expected 3 axes, got {seq}.")
     if not 1 <= n <= 3:
         raise ValueError(f"Expected axis specification to be a non-empty string of upto 3 characters, got {seq}")
+    if not isinstance(seq, str):  # scipy: a TypeError (its pattern match of a non-string)
+        raise TypeError(f"Expected `seq` to be a string, got {type(seq).__name__} {seq!r}.")
     if not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
         raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or ['X', 'Y', 'Z'], got {seq}")
     if any(seq[i] == seq[i + 1] for i in range(n - 1)):
