@@ -214,7 +214,15 @@ class Rotation:
       sign of rounding noise;
     - a non-Rotation argument of ``approx_equal`` or ``reduce`` raises
       ``TypeError`` (scipy: ``AttributeError``); error messages name the
-      problem in scipy's words, sometimes with more detail.
+      problem in scipy's words, sometimes with more detail;
+    - inputs scipy 1.17 fails on by accident work: read-only arrays, N-D and
+      empty stacks in ``reduce``, lists of numpy integers as indices, ``mean``
+      weights that broadcast to a 1-D stack (as scipy documents; its 1-D path
+      wants one per rotation), quaternions, matrices and vectors of extreme
+      scale (scaled before squaring); a nan matrix gives nan rotations
+      (scipy: ``LinAlgError``), and so does ``align_vectors`` with nan;
+    - complex angles or exponents and a fractional ``num`` raise (scipy drops
+      the imaginary part, truncates ``num``).
 
     Examples
     --------
