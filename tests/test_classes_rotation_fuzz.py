@@ -711,3 +711,15 @@ def test_dihedral_half_turns_point_as_scipys(n):
         r, s = R.create_group(f"D{n}", axis), S.create_group(f"D{n}", axis)
         _close(r.as_rotvec(), s.as_rotvec(), 1e-14, f"D{n} {axis} as_rotvec")
         _close((r ** 0.5).as_quat(), (s ** 0.5).as_quat(), 1e-14, f"D{n} {axis} ** 0.5")
+
+
+def test_float32_stays_float32_in_reduce_and_as_davenport():
+    q = np.random.default_rng(3).standard_normal((5, 4))
+    r32, s = R.from_quat(q.astype(np.float32)), S.from_quat(q.astype(np.float32).astype(np.float64))
+    red = r32.reduce(left=R.create_group("O"), right=R.create_group("C2"))
+    assert red.wxyz.dtype == np.float32
+    _close(red.magnitude(), s.reduce(left=S.create_group("O"), right=S.create_group("C2")).magnitude(), 1e-6, "reduce")
+    for rot, ref in ((r32, s), (r32[0], s[0])):
+        ang = rot.as_davenport(np.eye(3)[[2, 0, 2]], "e")
+        assert ang.dtype == np.float32
+        _close(ang, ref.as_davenport(np.eye(3)[[2, 0, 2]], "e"), 1e-5, "as_davenport")

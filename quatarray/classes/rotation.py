@@ -750,6 +750,8 @@ class Rotation:
         """
         q = self._q if not self._single else self._q[None]
         ax = _floats(axes, "axes")
+        if ax.dtype != q.dtype:  # float32 rotations give float32 angles
+            ax = ax.astype(q.dtype)
         small = ax.shape == (3, 3) and ax.dtype == q.dtype and q.ndim == 2 and len(q) <= 64
         if small and isinstance(order, str) and order in _ORDERS:  # a few rotations: no front end
             ax = (ax / np.sqrt((ax * ax).sum(axis=1))[:, None]).astype(q.dtype, copy=False)
@@ -996,7 +998,8 @@ class Rotation:
             if g is not None and not isinstance(g, Rotation):
                 raise TypeError(f"Expected `{name}` to be a Rotation, got {type(g).__name__}.")
         q = self._q if self._q.ndim > 1 else self._q[None]
-        red, li, ri = _sym.reduce(q, None if left is None else left._q, None if right is None else right._q)
+        # the groups in the rotations' dtype: float32 stays float32
+        red, li, ri = _sym.reduce(q, *(None if g is None else g._q.astype(q.dtype, copy=False) for g in (left, right)))
         if self._single:
             red = red[0]
         r = Rotation._from_house(red, self._single)
