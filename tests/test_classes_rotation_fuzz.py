@@ -723,3 +723,13 @@ def test_float32_stays_float32_in_reduce_and_as_davenport():
         ang = rot.as_davenport(np.eye(3)[[2, 0, 2]], "e")
         assert ang.dtype == np.float32
         _close(ang, ref.as_davenport(np.eye(3)[[2, 0, 2]], "e"), 1e-5, "as_davenport")
+
+
+def test_weak_references_as_to_scipys():
+    import weakref
+
+    for M in (S, R):
+        r = M.identity(2)
+        ref = weakref.ref(r)
+        assert ref() is r
+    assert pickle.loads(pickle.dumps(R.identity(2))).shape == (2,)

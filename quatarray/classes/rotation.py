@@ -237,7 +237,7 @@ class Rotation:
     array([0.        , 0.        , 3.14159265])
     """
 
-    __slots__ = ("_q", "_single")
+    __slots__ = ("_q", "_single", "__weakref__")  # weak references, as to scipy's
 
     def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
         """From quaternions (scalar-last unless `scalar_first`), as scipy's
