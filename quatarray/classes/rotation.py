@@ -222,7 +222,10 @@ class Rotation:
       scale (scaled before squaring); a nan matrix gives nan rotations
       (scipy: ``LinAlgError``), and so does ``align_vectors`` with nan;
     - complex angles or exponents and a fractional ``num`` raise (scipy drops
-      the imaginary part, truncates ``num``).
+      the imaginary part, truncates ``num``);
+    - ``Rotation(quat, normalize=False, copy=False)`` holds `quat` itself only
+      for scalar-first input (the storage is (w, x, y, z)); scipy holds it only
+      for scalar-last input.
 
     Examples
     --------
