@@ -70,13 +70,16 @@ def _cyclic(n, axis):
 def _dihedral(n, axis):
     # scipy's order and signs: the cyclic group's rotation vectors (the turns
     # beyond π as the shorter turn the other way: w >= 0), then the half turns
-    # about the axes (0, cos t, sin t) rolled by `axis`, as quaternions of
-    # rotation vectors of length π (w = cos(π/2), 6e-17)
+    # about the axes (0, cos t, sin t) rolled by `axis`, as scipy's quaternions
+    # of the rotation vectors π (0, cos t, sin t): w = cos(|v|/2) is ±1e-16 by
+    # the rounding of |v|, and its sign picks the direction of the rotation
+    # vector (as_rotvec, powers) of these half turns, so it is computed as scipy does
     c = _cyclic(n, axis)
     c[c[:, 0] < 0] *= -1
     t = np.linspace(0, np.pi, n, endpoint=False)
-    u = np.roll(np.stack([np.zeros(n), np.cos(t), np.sin(t)], axis=1), axis, axis=1)
-    half = np.column_stack([np.full(n, np.cos(np.pi / 2)), u])
+    v = np.pi * np.roll(np.stack([np.zeros(n), np.cos(t), np.sin(t)], axis=1), axis, axis=1)
+    angle = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])
+    half = np.column_stack([np.cos(angle / 2), (np.sin(angle / 2) / angle)[:, None] * v])
     return np.concatenate([c, half])
 
 

@@ -131,13 +131,15 @@ def _from_scipy(other):
 
 
 def _floats(x, name):
-    """`x` as a float32/float64 ndarray: the arrays the class holds pass as they are."""
-    if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32):
+    """`x` as a C-contiguous float32/float64 ndarray (the lean paths hand it to the
+    serial kernels as it is): the arrays the class holds pass as they are."""
+    if type(x) is np.ndarray and (x.dtype is _F64 or x.dtype is _F32) and x.flags.c_contiguous:
         return x
     try:
-        return as_float(x, name)
+        a = as_float(x, name)
     except TypeError as exc:  # scipy: a ValueError for values that are not real numbers
         raise ValueError(str(exc)) from None
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
 
 
 def _shape_check(a, name, core, text):
@@ -149,12 +151,14 @@ def _shape_check(a, name, core, text):
 def _check_seq(seq, three):
     """scipy's checks (and messages) of an Euler sequence that is not one of the valid
     ones: 1 to 3 axes (exactly 3 when `three`), one case, no axis twice in a row."""
-    n = len(seq)  # TypeError for a non-sequence, as scipy
+    n = len(seq)  # (a TypeError for a non-sequence, as scipy)
     if three and n != 3:
         raise ValueError(f"Expected 3 axes, got {seq}.")
     if not 1 <= n <= 3:
         raise ValueError(f"Expected axis specification to be a non-empty string of upto 3 characters, got {seq}")
-    if not isinstance(seq, str) or not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
+    if not isinstance(seq, str):  # scipy: a TypeError (its pattern match of a non-string)
+        raise TypeError(f"Expected `seq` to be a string, got {type(seq).__name__} {seq!r}.")
+    if not (set(seq) <= set("xyz") or set(seq) <= set("XYZ")):
         raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or ['X', 'Y', 'Z'], got {seq}")
     if any(seq[i] == seq[i + 1] for i in range(n - 1)):
         raise ValueError(f"Expected consecutive axes to be different, got {seq}")
@@ -179,8 +183,11 @@ def _lead_shape(num, shape):
         return ()
     if isinstance(shape, (int, np.integer)) and not isinstance(shape, bool):
         return (int(shape),)
-    if isinstance(shape, tuple) and all(isinstance(k, (int, np.integer)) for k in shape):
-        return tuple(int(k) for k in shape)
+    if isinstance(shape, tuple):
+        try:
+            return tuple(operator.index(k) for k in shape)
+        except TypeError:  # scipy: a TypeError for a float in the tuple
+            raise TypeError(f"Expected `shape` to be a tuple of integers, got {shape!r}.") from None
     raise ValueError(f"`shape` must be an int or a tuple of ints, got {shape!r}.")
 
 
@@ -219,7 +226,18 @@ class Rotation:
       sign of rounding noise;
     - a non-Rotation argument of ``approx_equal`` or ``reduce`` raises
       ``TypeError`` (scipy: ``AttributeError``); error messages name the
-      problem in scipy's words, sometimes with more detail.
+      problem in scipy's words, sometimes with more detail;
+    - inputs scipy 1.17 fails on by accident work: read-only arrays, N-D and
+      empty stacks in ``reduce``, lists of numpy integers as indices, ``mean``
+      weights that broadcast to a 1-D stack (as scipy documents; its 1-D path
+      wants one per rotation), quaternions, matrices and vectors of extreme
+      scale (scaled before squaring); a nan matrix gives nan rotations
+      (scipy: ``LinAlgError``), and so does ``align_vectors`` with nan;
+    - complex angles or exponents and a fractional ``num`` raise (scipy drops
+      the imaginary part, truncates ``num``);
+    - ``Rotation(quat, normalize=False, copy=False)`` holds `quat` itself only
+      for scalar-first input (the storage is (w, x, y, z)); scipy holds it only
+      for scalar-last input.
 
     Examples
     --------
@@ -234,7 +252,7 @@ class Rotation:
     array([0.        , 0.        , 3.14159265])
     """
 
-    __slots__ = ("_q", "_single")
+    __slots__ = ("_q", "_single", "__weakref__")  # weak references, as to scipy's
 
     def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
         """From quaternions (scalar-last unless `scalar_first`), as scipy's
@@ -681,7 +699,7 @@ class Rotation:
                 if far[0]:
                     _eul._from_euler_far.serial(*args)
                 return Rotation._from_house(out[0], True)
-        if seq not in _eul._SEQS:
+        if type(seq) is not str or seq not in _eul._SEQS:
             _check_seq(seq, False)
         k = len(seq)
         if (a.shape[-1] if a.ndim else 1) != k:
@@ -730,7 +748,7 @@ class Rotation:
         >>> r.as_euler("zxy", degrees=True).round(9) + 0.0
         array([90., 45.,  0.])
         """
-        q = _dav.from_davenport(axes, order, angles, degrees=bool(degrees))
+        q = _dav.from_davenport(_floats(axes, "axes"), order, _floats(angles, "angles"), degrees=bool(degrees))
         return Rotation._from_house(q, q.ndim == 1)
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
@@ -747,6 +765,8 @@ class Rotation:
         """
         q = self._q if not self._single else self._q[None]
         ax = _floats(axes, "axes")
+        if ax.dtype != q.dtype:  # float32 rotations give float32 angles
+            ax = ax.astype(q.dtype)
         small = ax.shape == (3, 3) and ax.dtype == q.dtype and q.ndim == 2 and len(q) <= 64
         if small and isinstance(order, str) and order in _ORDERS:  # a few rotations: no front end
             ax = (ax / np.sqrt((ax * ax).sum(axis=1))[:, None]).astype(q.dtype, copy=False)
@@ -993,7 +1013,8 @@ class Rotation:
             if g is not None and not isinstance(g, Rotation):
                 raise TypeError(f"Expected `{name}` to be a Rotation, got {type(g).__name__}.")
         q = self._q if self._q.ndim > 1 else self._q[None]
-        red, li, ri = _sym.reduce(q, None if left is None else left._q, None if right is None else right._q)
+        # the groups in the rotations' dtype: float32 stays float32
+        red, li, ri = _sym.reduce(q, *(None if g is None else g._q.astype(q.dtype, copy=False) for g in (left, right)))
         if self._single:
             red = red[0]
         r = Rotation._from_house(red, self._single)
@@ -1058,8 +1079,9 @@ class Rotation:
 
         As scipy 1.17 (its transition from ``random_state`` to ``rng``): a seed
         given by position, ``random(num, seed)``, or as ``random_state=`` seeds a
-        legacy ``RandomState``; ``rng=seed`` by keyword seeds ``default_rng``.
-        A ``Generator`` or ``RandomState`` is used as it is.
+        legacy ``RandomState`` (a ``Generator`` or ``RandomState`` given so is
+        used as it is); ``rng=`` by keyword goes through ``default_rng`` (a
+        ``RandomState`` there becomes a ``Generator`` on its bit generator).
 
         Examples
         --------
@@ -1075,12 +1097,12 @@ class Rotation:
         old = bool(legacy) or random_state is not None
         seed = seeds[0] if seeds else rng
         lead = _lead_shape(num, shape)
-        if isinstance(seed, (np.random.Generator, np.random.RandomState)):
+        if not old:  # `rng=` by keyword: scipy normalises it with default_rng (a RandomState
+            gen = np.random.default_rng(seed)  # becomes a Generator on its bit generator)
+        elif isinstance(seed, (np.random.Generator, np.random.RandomState)):
             gen = seed
-        elif old:
-            gen = np.random.mtrand._rand if seed is None else np.random.RandomState(seed)
         else:
-            gen = np.random.default_rng(seed)
+            gen = np.random.mtrand._rand if seed is None else np.random.RandomState(seed)
         sample = gen.normal(size=lead + _Q)
         return Rotation._from_house(_house_in(sample, False, "quat"), sample.ndim == 1)
 
@@ -1118,13 +1140,11 @@ class Rotation:
             w = _floats(weights, "weights")
             if w.ndim != 1:
                 raise ValueError(f"Expected `weights` to be 1 dimensional, got shape {w.shape}.")
-            if n > 1 and w.shape[0] != n:
+            if n >= 1 and w.shape[0] != n:  # scipy: also for one pair (its matmul's error)
                 raise ValueError(
                     "Expected `weights` to have number of values equal to number of input vectors, "
                     f"got {w.shape[0]} values and {n} vectors."
                 )
-            if n == 1:
-                w = w[:1]
             if np.any(w < 0):
                 raise ValueError("`weights` may not contain negative values")
             weights = w
@@ -1137,7 +1157,8 @@ class Rotation:
             k = int(np.argmax(inf)) if inf.any() else 0
             if not (np.any(a2[k] != 0) and np.any(b2[k] != 0)):
                 raise ValueError("Cannot align zero length primary vectors")
-        res = _align.align_vectors(a2, b2, weights, bool(return_sensitivity))
+        with np.errstate(invalid="ignore"):  # nan sensitivity of degenerate sets: silent, as scipy
+            res = _align.align_vectors(a2, b2, weights, bool(return_sensitivity))
         r = Rotation._from_house(res[0], True)
         return (r,) + tuple(res[1:])
 
