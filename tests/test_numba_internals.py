@@ -109,10 +109,22 @@ CASES = {
         "R.CPUDispatcher = type('CPUDispatcher', (R.CPUDispatcher,), {'__slots__': ('extra',)})",
         "", "dispatcher subclass", True),
     "wrapper_options": (
+        # a numba without the options, whose own overloads do not ask for them
+        "from numba.core import extending\n"
         "from numba.core.cpu import CPUTargetOptions\n"
-        "for c in CPUTargetOptions.__mro__:\n"
-        "    if 'no_cpython_wrapper' in vars(c):\n"
-        "        delattr(c, 'no_cpython_wrapper')",
+        "from numba.core.typing import templates\n"
+        "def subclasses(c):\n"
+        "    for s in c.__subclasses__():\n"
+        "        yield s\n"
+        "        yield from subclasses(s)\n"
+        "for name in ('no_cpython_wrapper', 'no_cfunc_wrapper'):\n"
+        "    extending._overload_default_jit_options.pop(name, None)\n"
+        "    for t in [*subclasses(templates.FunctionTemplate), *subclasses(templates.AttributeTemplate)]:\n"
+        "        if isinstance(vars(t).get('_jit_options'), dict):\n"
+        "            t._jit_options.pop(name, None)\n"
+        "    for c in CPUTargetOptions.__mro__:\n"
+        "        if name in vars(c):\n"
+        "            delattr(c, name)",
         "", "numba option no_cpython_wrapper", True),
     "tm_features": (
         "from numba.core import codegen\n"
@@ -280,3 +292,31 @@ def test_trace_stack_is_per_thread():
     finally:
         _trace._NOW.pop()
     assert seen == [None] and _trace._NOW[-1] is None
+
+
+CACHED = """
+import numpy as np, quatarray as qa
+from quatarray._numba_internals import CompileCounter
+q = np.random.default_rng(5).normal(size=(6, 4))
+q[0] *= 1e200  # the far-range pass: the specialised copies
+with CompileCounter() as c:
+    r = [qa.as_mrp(q), qa.norm(q), qa.angle(q), qa.distance(q, q[::-1])]
+print(c.count)
+print("|".join(np.asarray(x).tobytes().hex() for x in r))
+"""
+
+
+def test_first_calls_in_a_new_process_work_and_are_cached(tmp_path):
+    """as_mrp, norm, angle and distance on far-range rows (the function copies of
+    ``specialise(home=...)``) in a new process with an empty cache, then in another:
+    the second compiles nothing and gives the same numbers (Python 3.13: issue 35)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=ROOT)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    runs = []
+    for _ in range(2):
+        r = subprocess.run([sys.executable, "-c", CACHED], capture_output=True, text=True, cwd=ROOT, env=env,
+                           timeout=600)
+        assert r.returncode == 0, r.stderr[-3000:]
+        runs.append(r.stdout.split())
+    assert int(runs[0][0]) > 0 and int(runs[1][0]) == 0
+    assert runs[0][1] == runs[1][1]
