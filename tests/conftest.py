@@ -53,7 +53,7 @@ SCIPY_SCALAR_FIRST = _scipy_has_scalar_first()
 
 def _needs_scalar_first(exc):
     """True for the TypeError of an older scipy's Rotation given ``scalar_first=``."""
-    if isinstance(exc, TypeError) and "scalar_first" in str(exc):
+    if isinstance(exc, TypeError) and ("scalar_first" in str(exc) or "takes no keyword arguments" in str(exc)):
         return True
     return any(_needs_scalar_first(e) for e in getattr(exc, "exceptions", ()))
 
