@@ -408,7 +408,10 @@ def specialise(fn, suffix, home=None, **names):
     `home`, a function, makes the copy belong to home's module and source file:
     numba then keeps its cache beside home's and drops it when that file changes
     (numba checks only the file of the function it compiles, and the copy's
-    behaviour lives in the functions rebound from there)."""
+    behaviour lives in the functions rebound from there). The copy takes home's
+    first line too (:func:`quatarray._numba_internals.rehome`): numba reads the
+    source at a function's file and first line for its cache, and from Python 3.13
+    ``inspect`` reads a block from exactly that line."""
     scope = dict(fn.__globals__)
     scope.update(names)
     code = fn.__code__
@@ -511,10 +514,11 @@ def prefer_no_gather():
     gathers: without them it ran 4× slower). The
     function gets LLVM's ``target-features`` attribute: the target machine's own
     features and :data:`NO_GATHER_FEATURES`, which change only the instructions
-    chosen (the results are bitwise the same). llvmlite's attribute set takes
-    only LLVM's enumerated attributes and prints each member as it is, so the
-    string attribute is added to it as a plain set member; where numba's codegen
-    has no ``_tm_features`` the function is left as it is. In plain Python
+    chosen (the results are bitwise the same). The flags are LLVM 17's: with an
+    older LLVM (numba 0.60 and 0.61 have 14 and 15), where numba's codegen has
+    no ``_tm_features`` or where llvmlite does not print the attribute, the
+    function is left as it is
+    (:func:`quatarray._numba_internals.add_target_features`). In plain Python
     (``NUMBA_DISABLE_JIT=1``) it does nothing."""
 
 
