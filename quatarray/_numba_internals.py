@@ -281,14 +281,12 @@ def _call_template_known():
     return fn is not None and _params(fn) == ["self", "args", "kws"]
 
 
-def _make_classes():
-    """(the kernels' dispatcher class, the element functions' class), or Nones."""
-    if CPUDispatcher is None:
-        return None, None
-    from numba.core import types
+_CALL_TEMPLATE = _call_template_known()
+if CPUDispatcher is not None and not _CALL_TEMPLATE:
+    degrade("plain-type calls between kernels", "numba's Dispatcher.get_call_template is missing or changed")
 
-    if not _call_template_known():
-        degrade("plain-type calls between kernels", "numba's Dispatcher.get_call_template is missing or changed")
+if CPUDispatcher is not None:  # module-level classes: a dispatcher pickles by reference to its class
+    from numba.core import types as _types
 
     class Dispatcher(CPUDispatcher):
         """numba's dispatcher, except that a call from another kernel compiles for the
@@ -296,10 +294,10 @@ def _make_classes():
         a table column) and compiles an overload for each literal value: the spline's
         small table accessors compiled up to five times each, 0.1-0.3 s apiece."""
 
-        if _call_template_known():
+        if _CALL_TEMPLATE:
             def get_call_template(self, args, kws):
-                args = tuple(types.unliteral(a) for a in args)
-                kws = {k: types.unliteral(v) for k, v in kws.items()}
+                args = tuple(_types.unliteral(a) for a in args)
+                kws = {k: _types.unliteral(v) for k, v in kws.items()}
                 return super().get_call_template(args, kws)
 
     class Element(Dispatcher):
@@ -314,11 +312,9 @@ def _make_classes():
             if twin is None:
                 twin = self.__dict__["_python_twin"] = numba.njit(**self.__dict__["_twin_options"])(self.py_func)
             return twin(*args, **kws)
+else:  # pragma: no cover - numba moved its CPU dispatcher
+    Dispatcher = Element = None
 
-    return Dispatcher, Element
-
-
-Dispatcher, Element = _make_classes()
 WRAPPER_OPTIONS = ("no_cpython_wrapper", "no_cfunc_wrapper")
 
 
