@@ -90,3 +90,18 @@ def pytest_pyfunc_call(pyfuncitem):
 
             pytest.skip(f"the oracle needs a newer scipy than {scipy.__version__} ({exc})")
         raise
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_fixture_setup(fixturedef, request):
+    """A fixture built with a newer scipy's ``Rotation`` (see :func:`pytest_pyfunc_call`)
+    skips its tests on an older scipy, saying so."""
+    try:
+        return (yield)
+    except BaseException as exc:
+        if _scipy_rotation_refused(exc):
+            import scipy
+
+            pytest.skip(f"the fixture needs a newer scipy than {scipy.__version__} ({exc})")
+        raise
+
