@@ -356,8 +356,9 @@ def njit(fn, element=False, **options):
         return d
     if _swap(d, Element if element else Dispatcher):
         if element:
+            # the twin in memory only: on disk it would share the element's cache index
             d.__dict__["_twin_options"] = {k: v for k, v in supported_options(wrapped).items()
-                                           if k not in WRAPPER_OPTIONS}
+                                           if k not in WRAPPER_OPTIONS and k != "cache"}
         return d
     degrade("dispatcher subclass", f"numba's dispatcher class {type(d).__qualname__} cannot be subclassed "
             "in place")

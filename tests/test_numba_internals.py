@@ -296,11 +296,16 @@ def test_trace_stack_is_per_thread():
 
 CACHED = """
 import numpy as np, quatarray as qa
+from quatarray import _access
 from quatarray._numba_internals import CompileCounter
 q = np.random.default_rng(5).normal(size=(6, 4))
 q[0] *= 1e200  # the far-range pass: the specialised copies
+m = qa.as_matrix(q[1:])
 with CompileCounter() as c:
-    r = [qa.as_mrp(q), qa.norm(q), qa.angle(q), qa.distance(q, q[::-1])]
+    r = [qa.as_mrp(q), qa.norm(q), qa.angle(q), qa.distance(q, q[::-1]), qa.from_matrix(m)]
+# an element function (load33, which from_matrix's kernel calls) called from Python: its
+# twin with the wrappers is not cached, and never loads the element's code from the cache
+r.append(np.array(_access.load33(m, 1)))
 print(c.count)
 print("|".join(np.asarray(x).tobytes().hex() for x in r))
 """
@@ -308,8 +313,9 @@ print("|".join(np.asarray(x).tobytes().hex() for x in r))
 
 def test_first_calls_in_a_new_process_work_and_are_cached(tmp_path):
     """as_mrp, norm, angle and distance on far-range rows (the function copies of
-    ``specialise(home=...)``) in a new process with an empty cache, then in another:
-    the second compiles nothing and gives the same numbers (Python 3.13: issue 35)."""
+    ``specialise(home=...)``) and from_matrix in a new process with an empty cache, then
+    in another: the second compiles nothing and gives the same numbers (Python 3.13:
+    issue 35); an element function called from Python in both."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=ROOT)
     env.pop("NUMBA_DISABLE_JIT", None)
     runs = []
