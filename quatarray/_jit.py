@@ -95,7 +95,6 @@ Kernel layers
 import contextlib
 import contextvars
 import hashlib
-import importlib.util
 import inspect
 import os
 import stat
@@ -108,40 +107,15 @@ import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.core.registry import CPUDispatcher
 from numba.extending import lower_builtin, type_callable
 
+from . import _numba_internals as _ni
 from . import _trace
+from ._numba_internals import rehome
 from ._trace import Sym
 
 
-def _defer_blas_probe():
-    """Keep numba from importing ``scipy.linalg`` in every process that compiles or
-    loads a kernel (0.25 s CPU, 0.15 s wall; a third of a warm command-line call).
-
-    numba's ``np.arraymath``, imported by its first compile or cache load, sets
-    ``_HAVE_BLAS`` at import by calling ``numba.np.linalg.ensure_blas``, which imports
-    ``scipy.linalg.cython_blas``; only ``np.dot``-like functions read the answer, and
-    quatarray's kernels use none. Until that import, ``ensure_blas`` is replaced by a
-    probe that answers the same question by finding ``scipy.linalg`` without running
-    it, and puts the real function back at its first call. Any later caller (numba's
-    linear algebra, when some kernel uses it) runs the real one, which imports scipy
-    then. Nothing changes where ``np.arraymath`` is already imported or numba differs."""
-    from numba.np import linalg
-
-    real = getattr(linalg, "ensure_blas", None)
-    if real is None or "numba.np.arraymath" in sys.modules:
-        return
-
-    def probe():
-        linalg.ensure_blas = real
-        if importlib.util.find_spec("scipy.linalg") is None:
-            raise ImportError("scipy.linalg is not installed")
-
-    linalg.ensure_blas = probe
-
-
-_defer_blas_probe()
+_ni.defer_blas_probe()
 
 try:
     import fcntl
@@ -151,29 +125,20 @@ CACHE_LOCK_ENV = "QUATARRAY_CACHE_LOCK"
 CAN_LOCK = fcntl is not None
 
 
+def _flock(f, exclusive):
+    fcntl.flock(f, fcntl.LOCK_EX if exclusive else fcntl.LOCK_UN)
+
+
 def lock_cache_writes(path):
     """Make this process's writes to numba's cache hold an exclusive lock on the
-    file `path` (see ``QUATARRAY_CACHE_LOCK``); once per process."""
-    from numba.core.caching import IndexDataCacheFile
-
-    save = IndexDataCacheFile.save
-    if getattr(save, "lock_path", None) is not None:
-        return
-
-    def locked_save(self, key, data):
-        with open(path, "a") as f:
-            fcntl.flock(f, fcntl.LOCK_EX)
-            try:
-                save(self, key, data)
-            finally:
-                fcntl.flock(f, fcntl.LOCK_UN)
-
-    locked_save.lock_path = path
-    IndexDataCacheFile.save = locked_save
+    file `path` (see ``QUATARRAY_CACHE_LOCK``); once per process. False where numba's
+    cache differs from the one :mod:`quatarray._numba_internals` knows."""
+    return _ni.lock_cache_writes(path, _flock)
 
 
+_LOCKED = True
 if CAN_LOCK and os.environ.get(CACHE_LOCK_ENV):
-    lock_cache_writes(os.environ[CACHE_LOCK_ENV])
+    _LOCKED = lock_cache_writes(os.environ[CACHE_LOCK_ENV])
 
 
 def package_stamp(root):
@@ -221,69 +186,20 @@ def package_stamp(root):
     return h.hexdigest()
 
 
-class _PackageLocator:
-    """A numba cache locator for the functions of quatarray's own files: numba's
-    own (the first of its standard locators that takes the function), with a
-    source stamp that also holds :func:`package_stamp` of the package.
-
-    numba stamps a function's cached code with the hash of its own source file
-    only, while a kernel also holds the code of the element functions of other
-    files that it inlines: a kernel of ``conversions.py`` compiled before a change
-    of ``_trig.py`` would keep loading the old trigonometry (after an upgrade that
-    changed ``_trig.py`` alone, for instance, where the cache outlives the
-    sources). With the package's stamp, a change of any source file makes every
-    kernel compile again."""
-
-    _stamp = None  # the package's, computed at the first locator
-    _quatarray_locator = True  # tells this class (and its copies after a reload) apart
-
-    def __init__(self, inner):
-        self._inner = inner
-
-    def __getattr__(self, name):
-        if name == "_inner":  # not set yet (copy, pickle): no recursion
-            raise AttributeError(name)
-        return getattr(self._inner, name)
-
-    def get_source_stamp(self):
-        if _PackageLocator._stamp is None:
-            _PackageLocator._stamp = package_stamp(_PACKAGE_DIR)
-        return self._inner.get_source_stamp(), _PackageLocator._stamp
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        try:
-            if os.path.commonpath([os.path.abspath(py_file), _PACKAGE_DIR]) != _PACKAGE_DIR:
-                return None
-        except ValueError:  # another drive (Windows)
-            return None
-        for locator in _STANDARD_LOCATORS:
-            inner = locator.from_function(py_func, py_file)
-            if inner is not None:
-                return cls(inner)
-        return None
-
-
-def _stamp_the_package():
-    """Put :class:`_PackageLocator` first in numba's cache locators, in place of
-    any earlier copy of it (``importlib.reload`` of this module makes a new class)."""
-    from numba.core.caching import CacheImpl
-
-    classes = CacheImpl._locator_classes
-    classes[:] = [c for c in classes if not getattr(c, "_quatarray_locator", False)]
-    _STANDARD_LOCATORS[:] = list(classes)
-    classes.insert(0, _PackageLocator)
-
-
+# numba's cache stamped with the package's sources (_numba_internals.PackageLocator)
+_PackageLocator = _ni.PackageLocator
 _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
-_STANDARD_LOCATORS = []
-_stamp_the_package()
+_STANDARD_LOCATORS = _ni.PackageLocator.standard
+_STAMPED = _ni.install_locator(_PACKAGE_DIR, package_stamp)
 
 # The debug mode of the row accessors (QUATARRAY_CHECK_BOUNDS=1): every load and
 # store checks its index, and so does numba's own indexing; such code is never
 # cached (it would be loaded by processes without the checks, and vice versa).
 CHECK_BOUNDS = os.environ.get("QUATARRAY_CHECK_BOUNDS", "0") == "1"
-CACHE = os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no") and not CHECK_BOUNDS
+# The cache is on unless asked off, and only where each kernel's stamp covers the
+# whole package and processes that share it can lock their writes when asked to.
+CACHE = (os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no") and _STAMPED and _LOCKED
+         and not CHECK_BOUNDS)
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
 
 # error_model="numpy": 1/0 gives inf or nan instead of raising, as numpy does.
@@ -291,19 +207,7 @@ _OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy", **({"boundscheck":
 
 prange = numba.prange
 # jit_options of an ``@overload`` that LLVM inlines into every caller (see ``inline``)
-INLINE_OPTIONS = {"cache": CACHE, "forceinline": True}
-
-
-class _Dispatcher(CPUDispatcher):
-    """numba's dispatcher, except that a call from another kernel compiles for the
-    arguments' plain types. numba types a constant argument as a literal (the 16 of
-    a table column) and compiles an overload for each literal value: the spline's
-    small table accessors compiled up to five times each, 0.1-0.3 s apiece."""
-
-    def get_call_template(self, args, kws):
-        args = tuple(types.unliteral(a) for a in args)
-        kws = {k: types.unliteral(v) for k, v in kws.items()}
-        return super().get_call_template(args, kws)
+INLINE_OPTIONS = _ni.supported_options({"cache": CACHE, "forceinline": True})
 
 
 # The CPython wrapper (boxing and unboxing the arguments and the result) and the
@@ -312,35 +216,22 @@ class _Dispatcher(CPUDispatcher):
 # without them: for tuple arguments the wrappers are most of a small function's
 # code, and leaving them out cut the first calls of the VQS, interpolate and
 # align_vectors warm-up entries by 0.3-1 s CPU each (about 0.03 s per function).
-NO_WRAPPERS = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+NO_WRAPPERS = dict.fromkeys(_ni.WRAPPER_OPTIONS, True)
 
 
-class _Element(_Dispatcher):
-    """The dispatcher of an element function (:data:`NO_WRAPPERS`). A call from
-    Python (a test, a REPL) runs a twin compiled with the wrappers, in memory only
-    (one on-disk cache index serves both, and the twin's code must not be taken
-    for the element's or the other way round); the kernels never go this way."""
-
-    def __call__(self, *args, **kws):
-        twin = self.__dict__.get("_python_twin")
-        if twin is None:
-            keep = {k: v for k, v in self.targetoptions.items() if k not in NO_WRAPPERS and k != "nopython"}
-            twin = self.__dict__["_python_twin"] = numba.njit(**keep)(self.py_func)
-        return twin(*args, **kws)
-
-
-def _njit(fn, cls=_Dispatcher, **options):
-    """``numba.njit(**_OPTIONS, **options)(fn)`` with the :class:`_Dispatcher` rule
-    (`cls`: that class or a subclass)."""
-    d = numba.njit(**_OPTIONS, **options)(fn)
-    if isinstance(d, CPUDispatcher):  # not the plain function of NUMBA_DISABLE_JIT=1
-        d.__class__ = cls  # the same object layout: only the call typing differs
-    return d
+def _njit(fn, element=False, **options):
+    """``numba.njit(**_OPTIONS, **options)(fn)`` whose calls from other kernels compile
+    for the arguments' plain types, not for each literal value (a constant argument,
+    the 16 of a table column: the spline's small table accessors compiled up to five
+    times each, 0.1-0.3 s apiece); `element`: without the wrappers
+    (:data:`NO_WRAPPERS`), a call from Python running a twin compiled with them, in
+    memory only. See :func:`quatarray._numba_internals.njit`."""
+    return _ni.njit(fn, element, **{**_OPTIONS, **options})
 
 
 def element(fn):
     """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn, _Element, **NO_WRAPPERS)
+    return _njit(fn, element=True)
 
 
 def inline(fn):
@@ -350,7 +241,7 @@ def inline(fn):
     vectoriser; use this for the per-row math of loops that must run as SIMD
     (see the module docstring).
     """
-    return _njit(fn, _Element, forceinline=True, **NO_WRAPPERS)
+    return _njit(fn, element=True, forceinline=True)
 
 
 def ir_inline(fn):
@@ -449,7 +340,7 @@ def _into_copy(fn, k, nargs, tupled):
     call = f"({names}, a{k})" if tupled else f"{names}, a{k}"
     exec(f"def {name}({names}):\n    return _LOOP({call})\n", scope)
     copy = scope[name]
-    copy.__code__ = copy.__code__.replace(co_filename=fn.__code__.co_filename, co_firstlineno=fn.__code__.co_firstlineno)
+    copy.__code__ = rehome(copy.__code__, fn.__code__)
     copy.__qualname__ = f"{fn.__qualname__}_into{k}_{nargs}"
     copy.__module__ = fn.__module__
     return _njit(copy)
@@ -528,13 +419,16 @@ def specialise(fn, suffix, home=None, **names):
     `home`, a function, makes the copy belong to home's module and source file:
     numba then keeps its cache beside home's and drops it when that file changes
     (numba checks only the file of the function it compiles, and the copy's
-    behaviour lives in the functions rebound from there)."""
+    behaviour lives in the functions rebound from there). The copy takes home's
+    first line too (:func:`quatarray._numba_internals.rehome`): numba reads the
+    source at a function's file and first line for its cache, and from Python 3.13
+    ``inspect`` reads a block from exactly that line."""
     scope = dict(fn.__globals__)
     scope.update(names)
     code = fn.__code__
     if home is not None:
         home = getattr(home, "py_func", home)  # a dispatcher's Python function
-        code = code.replace(co_filename=home.__code__.co_filename)
+        code = rehome(code, home.__code__)
     copy = _pytypes.FunctionType(code, scope, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
     copy.__qualname__ = fn.__qualname__ + suffix
     copy.__module__ = fn.__module__ if home is None else home.__module__
@@ -616,7 +510,7 @@ def _lower_fmuladd(context, builder, sig, args):
 
 # LLVM's tuning flags that keep its vectoriser and code generator from gathers and
 # scatters (as LLVM tunes for Intel CPUs with the Gather Data Sampling mitigation)
-NO_GATHER_FEATURES = "+prefer-no-gather,+prefer-no-scatter"
+NO_GATHER_FEATURES = _ni.NO_GATHER_FEATURES
 
 
 def prefer_no_gather():
@@ -631,10 +525,11 @@ def prefer_no_gather():
     gathers: without them it ran 4× slower). The
     function gets LLVM's ``target-features`` attribute: the target machine's own
     features and :data:`NO_GATHER_FEATURES`, which change only the instructions
-    chosen (the results are bitwise the same). llvmlite's attribute set takes
-    only LLVM's enumerated attributes and prints each member as it is, so the
-    string attribute is added to it as a plain set member; where numba's codegen
-    has no ``_tm_features`` the function is left as it is. In plain Python
+    chosen (the results are bitwise the same). The flags are LLVM 17's: with an
+    older LLVM (numba 0.60 and 0.61 have 14 and 15), where numba's codegen has
+    no ``_tm_features`` or where llvmlite does not print the attribute, the
+    function is left as it is
+    (:func:`quatarray._numba_internals.add_target_features`). In plain Python
     (``NUMBA_DISABLE_JIT=1``) it does nothing."""
 
 
@@ -649,10 +544,7 @@ def _type_prefer_no_gather(context):
 
 @lower_builtin(prefer_no_gather)
 def _lower_prefer_no_gather(context, builder, sig, args):
-    features = getattr(context.codegen(), "_tm_features", None)
-    if isinstance(features, str):
-        joined = f"{features},{NO_GATHER_FEATURES}" if features else NO_GATHER_FEATURES
-        set.add(builder.function.attributes, f'"target-features"="{joined}"')
+    _ni.add_target_features(context, builder, NO_GATHER_FEATURES)
     return context.get_dummy_value()
 
 

@@ -30,6 +30,7 @@ typing error at the call: use :func:`select`.
 """
 
 import inspect
+import threading
 from contextlib import contextmanager
 
 import numpy as np
@@ -39,7 +40,24 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import lower_builtin, type_callable
 
-_NOW = [None]  # (context, builder) of the call being lowered; None while typing
+class _Stack(threading.local):
+    """A stack of each thread's own: two threads may compile at once (numba's
+    compiler lock serialises its own compiles today, but nothing here relies on it)."""
+
+    def __init__(self):
+        self.items = [None]
+
+    def __getitem__(self, i):
+        return self.items[i]
+
+    def append(self, x):
+        self.items.append(x)
+
+    def pop(self):
+        return self.items.pop()
+
+
+_NOW = _Stack()  # (context, builder) of the call being lowered; None while typing
 
 
 class Sym:

@@ -13,6 +13,8 @@ import operator
 
 import numpy as np
 
+from ._compat import reshape_view
+
 _F32 = np.dtype(np.float32)
 _F64 = np.dtype(np.float64)
 _FLOATS = (_F32, _F64)
@@ -289,7 +291,7 @@ def elementwise(kernel, inputs, out_cores, out=None, result=None):
     # kernels see its plain ndarray view.
     base = out if type(out) is np.ndarray else out.view(np.ndarray)
     try:
-        o = np.reshape(base, (n,) + core, copy=False)
+        o = reshape_view(base, (n,) + core)
     except ValueError:
         o = None
     target = o if o is not None else np.empty((n,) + core, dtype)

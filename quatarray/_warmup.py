@@ -465,20 +465,20 @@ def covered(name):
 
 
 def _run_job(qa, jit, name, dtype, variant, samples):
-    """Run one table entry: (seconds, number of functions numba compiled, error
+    """Run one table entry: (seconds, number of functions numba compiled (-1: unknown), error
     message or "")."""
-    from numba.core import event
+    from ._numba_internals import CompileCounter
 
-    rec = event.RecordingListener()
+    counter = CompileCounter()
     error = ""
     t0 = time.perf_counter()
     try:
-        with event.install_listener("numba:compile", rec), jit.variant(variant if variant == "parallel" else "serial"):
+        with counter, jit.variant(variant if variant == "parallel" else "serial"):
             TABLE[name](qa, samples[dtype])
     except Exception as exc:  # noqa: BLE001 - a kernel that does not compile is reported, the rest goes on
         error = f"{type(exc).__name__}: {str(exc).splitlines()[-1] if str(exc) else ''}"[:300]
     seconds = time.perf_counter() - t0
-    return seconds, sum(1 for _, ev in rec.buffer if ev.is_start), error
+    return seconds, counter.count if counter.count is not None else -1, error
 
 
 def _worker():
@@ -703,13 +703,12 @@ def in_background(names, dtype="float64", variants=VARIANTS):
                          f"`dtype` from {sorted(DTYPES)}, got {unknown[0] if unknown else dtype!r}.")
     if not _CAN_LOCK:
         return None
-    from numba.core.caching import IndexDataCacheFile
+    from . import _jit, _numba_internals
 
-    from . import _jit
-
-    lock = (getattr(IndexDataCacheFile.save, "lock_path", None) or os.environ.get(_LOCK_ENV)
+    lock = (_numba_internals.cache_lock_path() or os.environ.get(_LOCK_ENV)
             or os.path.join(tempfile.gettempdir(), "quatarray-cache.lock"))
-    _jit.lock_cache_writes(lock)
+    if not _jit.lock_cache_writes(lock):  # this numba's cache cannot be shared safely
+        return None
     proc = _start_worker(_env(lock), subprocess.DEVNULL, subprocess.DEVNULL)
     proc.stdin.write("".join(json.dumps([n, d, v]) + "\n" for n in names for d in DTYPES[dtype] for v in variants))
     proc.stdin.close()

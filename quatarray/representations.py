@@ -12,6 +12,7 @@ vectors and axis–angle pairs live in :mod:`quatarray.conversions`.
 import numpy as np
 
 from . import _elements as E
+from ._compat import rotation_as_wxyz, rotation_from_wxyz
 from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, refuse_masked, shape_error
 
@@ -152,10 +153,8 @@ def to_scipy(q):
     >>> np.round(r.as_rotvec(), 12)
     array([0. , 0. , 0.5])
     """
-    from scipy.spatial.transform import Rotation
-
     a = check_core(as_float(q, "q"), "q", Q)
-    return Rotation.from_quat(a, scalar_first=True)
+    return rotation_from_wxyz(a)
 
 
 def from_scipy(rotation):
@@ -176,7 +175,7 @@ def from_scipy(rotation):
         raise TypeError(
             "Expected `rotation` to be a scipy.spatial.transform.Rotation, " f"got {type(rotation).__name__}."
         )
-    return np.asarray(rotation.as_quat(scalar_first=True), dtype=np.float64)
+    return np.asarray(rotation_as_wxyz(rotation), dtype=np.float64)
 
 
 # --------------------------------------------------------------------------

@@ -37,6 +37,8 @@ import time
 
 import numpy as np
 
+from .._compat import rotation_as_wxyz, rotation_from_wxyz
+
 LIBS = ("quatarray", "scipy", "numpy-quaternion", "quaternionic")
 DEFAULT_N = 2_000_000
 NOT_AVAILABLE = "n/a: not available"
@@ -239,8 +241,8 @@ def cases(n, seed=0):
     t = rng.random(n)
     o4 = np.empty_like(p)
     o3 = np.empty_like(v)
-    rp = Rotation.from_quat(p, scalar_first=True)
-    rq = Rotation.from_quat(q, scalar_first=True)
+    rp = rotation_from_wxyz(p)
+    rq = rotation_from_wxyz(q)
     m = rp.as_matrix()
     rv = rp.as_rotvec()
     eul = rp.as_euler("ZYZ")
@@ -289,7 +291,7 @@ def cases(n, seed=0):
     p1 = p[0]
     c = case("rotate (1 q, N vectors)", nbytes=48, note="npq: rotate_vectors; qn: .rotate",
              qa_name="rotate", qa_fn=lambda f: lambda: f(p1, v, out=o3))
-    r1 = Rotation.from_quat(p1, scalar_first=True)
+    r1 = rotation_from_wxyz(p1)
     c.add("scipy", lambda: r1.apply(v))
     if npq is not None:
         P1 = npq.as_quat_array(p1)
@@ -331,11 +333,11 @@ def cases(n, seed=0):
     k = max(n // 16, 8)
     times = np.arange(k) / 30.0
     w = np.cumsum(rng.normal(0, 0.05, (k, 3)), axis=0)
-    keys = Rotation.from_rotvec(w).as_quat(scalar_first=True)
+    keys = rotation_as_wxyz(Rotation.from_rotvec(w))
     keys[1::3] *= -1  # real streams carry sign flips
     new_times = np.linspace(times[0], times[-1], 4 * (k - 1) + 1)
     m_out = new_times.size
-    rkeys = Rotation.from_quat(keys, scalar_first=True)
+    rkeys = rotation_from_wxyz(keys)
     for method, other in (("bezier", "RotationSpline"), ("slerp", "Slerp"), ("squad", None)):
         c = case(f"spline {method} ({k} keys -> {m_out})", items=m_out,
                  note=f"scipy: {other}" if other else "npq/qn: squad", qa_name="spline",
@@ -459,11 +461,11 @@ def _numpy_world(clip, Rotation):
     """Forward kinematics in numpy + scipy: one joint at a time, all frames at once."""
     rw, pw = [], []
     for j in range(len(clip.joints)):
-        r = Rotation.from_quat(clip.rotations[:, j], scalar_first=True)
+        r = rotation_from_wxyz(clip.rotations[:, j])
         p = clip.parents[j]
         rw.append(r if p < 0 else rw[p] * r)
         pw.append(clip.translations[:, j] if p < 0 else pw[p] + rw[p].apply(clip.translations[:, j]))
-    return np.stack([r.as_quat(scalar_first=True) for r in rw], axis=1), np.stack(pw, axis=1)
+    return np.stack([rotation_as_wxyz(r) for r in rw], axis=1), np.stack(pw, axis=1)
 
 
 def _scipy_assume_valid(Rotation, m):
@@ -476,15 +478,13 @@ def _scipy_assume_valid(Rotation, m):
 
 def overhead():
     """Per-call time in µs for one quaternion (multiply, rotate): the fixed cost of a call."""
-    from scipy.spatial.transform import Rotation
-
     import quatarray as qa
 
     npq = _optional("quaternion")
     qn = _optional("quaternionic")
     p, q = qa.random(rng=1), qa.random(rng=2)
     v = np.array([0.1, 0.2, 0.3])
-    rp, rq = Rotation.from_quat(p, scalar_first=True), Rotation.from_quat(q, scalar_first=True)
+    rp, rq = rotation_from_wxyz(p), rotation_from_wxyz(q)
     rows = {}
     fns = {"quatarray": lambda: qa.multiply(p, q), "scipy": lambda: rp * rq}
     if npq is not None:

@@ -26,6 +26,7 @@ import warnings
 
 import numpy as np
 
+from .._compat import write_csv
 from . import formats as F
 from .errors import DataError, UsageError
 from .formats import is_number
@@ -599,14 +600,10 @@ def write_positions(path, clip, fmt=None):
 
             pq.write_table(table, w.tmp)
         else:
-            import pyarrow.csv as pcsv
-
             plain = not any(set(j) & set(',"\n\r') for j in clip.joints)
-            opts = pcsv.WriteOptions(quoting_style="none" if plain else "needed", quoting_header="none",
-                                     batch_size=1 << 16)
-            pcsv.write_csv(table.cast(pa.schema([("t", pa.float64()), ("joint", pa.string()), ("x", pa.float64()),
-                                                 ("y", pa.float64()), ("z", pa.float64())])), w.tmp,
-                           write_options=opts)
+            write_csv(table.cast(pa.schema([("t", pa.float64()), ("joint", pa.string()), ("x", pa.float64()),
+                                            ("y", pa.float64()), ("z", pa.float64())])), w.tmp,
+                      quoting_style="none" if plain else "needed", batch_size=1 << 16)
 
 
 # --------------------------------------------------------------------------

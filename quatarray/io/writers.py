@@ -15,6 +15,7 @@ import tempfile
 
 import numpy as np
 
+from .._compat import csv_write_options, header_line
 from . import formats as F
 from .errors import OutputError, UsageError
 from .formats import is_zarr
@@ -443,10 +444,12 @@ class CsvWriter(Writer):
 
         table = _table(self.cols, data, t, pos)
         if self.w is None:
-            opts = pcsv.WriteOptions(
+            opts, by_hand = csv_write_options(
                 include_header=self.include_header, delimiter=self.delimiter, quoting_style="none",
-                quoting_header="none", batch_size=1 << 14,
+                batch_size=1 << 14,
             )
+            if by_hand:  # pyarrow < 22 quotes its header
+                self.sink.write(header_line(self.cols, self.delimiter))
             self.w = pcsv.CSVWriter(self.sink, table.schema, write_options=opts)
         self.w.write_table(table)
         self.rows += table.num_rows
