@@ -210,7 +210,7 @@ def _apply(q, t, v, inverse, out):
         E.store3(out, i, r)
 
 
-@rowloop(parallel=False)
+@rowloop
 def _as_matrix(q, t, out):
     for i in prange(q.shape[0]):
         a = E.qscaled(E.load4(q, i))[0]
