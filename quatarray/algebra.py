@@ -619,6 +619,18 @@ def _mean_bad_row(flat, w, lead):
     return ValueError(f"Expected `weights` to be finite; {where(k, lead)} has weight {w[k]}.")
 
 
+def approx_atol(atol, degrees, stacklevel=3):
+    """:func:`approx_equal`'s tolerance in radians, as scipy's: 1e-8 rad by default
+    (with a warning when `degrees` is asked without an `atol`), `atol` in degrees
+    converted. `stacklevel` points the warning at the caller's caller."""
+    if atol is None:
+        if degrees:
+            warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.",
+                          stacklevel=stacklevel)
+        return 1e-8
+    return np.deg2rad(atol) if degrees else atol
+
+
 def approx_equal(p, q, atol=None, degrees=False):
     """Whether p and q are the same rotation within `atol`, as scipy's
     ``Rotation.approx_equal``: ``distance(p, q) <= atol``. (scipy tests ``<``:
@@ -662,11 +674,6 @@ def approx_equal(p, q, atol=None, degrees=False):
     >>> bool(qa.approx_equal(q, q, atol=0).all() and qa.approx_equal(q, -q).all())
     True
     """
-    if atol is None:
-        if degrees:
-            warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.", stacklevel=2)
-        atol = 1e-8
-    elif degrees:
-        atol = np.deg2rad(atol)
+    atol = approx_atol(atol, degrees)
     # float32 in float64 (see above); float64 arrays are not copied
     return np.less_equal(distance(as_float(p, "p", np.float64), as_float(q, "q", np.float64)), atol)

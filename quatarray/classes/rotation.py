@@ -936,12 +936,7 @@ class Rotation:
         """
         if not isinstance(other, Rotation):
             other = _from_scipy(other)  # scipy's Rotation compares too (``tf.rotation`` against scipy's)
-        if atol is None:
-            if degrees:
-                warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.", stacklevel=2)
-            atol = 1e-8
-        elif degrees:
-            atol = np.deg2rad(atol)
+        atol = _alg.approx_atol(atol, degrees)
         p = self._q if self._q.ndim > 1 else self._q[None]
         q = other._q if other._q.ndim > 1 else other._q[None]
         try:
