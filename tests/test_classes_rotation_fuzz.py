@@ -22,8 +22,9 @@ import numpy as np
 import pytest
 import scipy  # noqa: E402
 
-if tuple(int(x) for x in scipy.__version__.split(".")[:2]) < (1, 17):  # the declared floor has scipy 1.11
-    pytest.skip(f"the oracle is scipy 1.17's classes; scipy {scipy.__version__} here", allow_module_level=True)
+if tuple(int(x) for x in scipy.__version__.split(".")[:2]) != (1, 17):  # the contract is scipy 1.17's API
+    pytest.skip(f"the oracle is scipy 1.17's classes (the contract); scipy {scipy.__version__} here",
+                allow_module_level=True)
 
 from scipy.spatial.transform import Rotation as S
 
