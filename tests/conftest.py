@@ -53,6 +53,9 @@ def _scipy_rotation_refused(exc):
 
     import quatarray
 
+    if isinstance(exc, AttributeError) and re.fullmatch(
+            r"(?:type object )?'[\w.]*Rotation'(?: object)? has no attribute '(\w+)'", str(exc)):
+        return True  # a method of a newer scipy (from_davenport: 1.12), the oracle's, not ours
     if isinstance(exc, TypeError):
         msg = str(exc)
         if msg.startswith("Rotation.") and "takes no keyword arguments" in msg:  # Cython's words (scipy < 1.14)
