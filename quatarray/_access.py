@@ -64,7 +64,7 @@ def store4(out, i, q):
         out[i, 3] = q[3]
 
 
-@element
+@element(how="call")
 def load33(a, i):
     """Matrix ``a[i]`` of an ``(n, 3, 3)`` array: numba's indexing, an element
     function (not a builtin at the literal stride 9, as :func:`store33`): that

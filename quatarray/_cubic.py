@@ -41,8 +41,8 @@ import math
 
 import numpy as np
 
-from ._jit import kernel
-from ._trace import traced
+from ._jit import element, rowloop
+
 
 MAX_ITER = 10  # scipy's RotationSpline.MAX_ITER
 TOL = 1e-9  # and its TOL
@@ -115,7 +115,7 @@ def _matrices(r, rr, coeffs):
 
 
 
-@traced
+@element
 def _mat3(rx, ry, rz, beta, gamma):
     """The 9 entries (row-major) of I + β[r]× + γ[r]×², [r]×² = r rᵀ − |r|² I."""
     d = 1.0 - gamma * (rx * rx + ry * ry + rz * rz)
@@ -124,7 +124,7 @@ def _mat3(rx, ry, rz, beta, gamma):
             gamma * rz * rx - beta * ry, gamma * rz * ry + beta * rx, d + gamma * rz * rz)
 
 
-@kernel
+@rowloop(parallel=False)
 def _factor(band):
     """Replace the block-tridiagonal matrix held by diagonals in `band` (N + KL, 2KL + 1:
     entry (i, c) at ``band[i, c − i + KL]``, its last KL rows the identity, so that no
@@ -139,7 +139,7 @@ def _factor(band):
                 band[i + k, KL - k + c] -= f * band[i, KL + c]
 
 
-@kernel
+@rowloop(parallel=False)
 def _rate_pass(band, x, w, jinv, r, j1, j2, k2, b0):
     """One pass of the rate iteration, in place: the right side b0 − N(r_j, J(r_j)⁻¹ ω_{j+1})
     of the rates `w` (3, n), the two substitutions of the factored `band` (:func:`_factor`)
@@ -182,7 +182,7 @@ def _rate_pass(band, x, w, jinv, r, j1, j2, k2, b0):
     return done
 
 
-@kernel
+@rowloop(parallel=False)
 def _system(q, dt, r, ki, j1, j2, k2, jinv, band, b0, w):
     """Everything of the rate system that is the same for every pass, in one pass over
     the steps (it was a dozen numpy passes, 60 % of the set-up at 1.25·10⁵ keys):
@@ -257,7 +257,7 @@ def _system(q, dt, r, ki, j1, j2, k2, jinv, band, b0, w):
             b0[a, n - 1] -= 2.0 / dt[m - 1] * (r[a, m - 1] / dt[m - 1])
 
 
-@kernel
+@rowloop(parallel=False)
 def _coefs(r, ki, dt, w, coef):
     """coef (m, 9) = (c0, c1, c2) of every step from r (3, m), ki, dt and the interior
     rates w (3, m − 1) (the end rates are r_0/h_0 and r_{m−1}/h_{m−1}):

@@ -16,14 +16,12 @@ from numba.extending import lower_builtin, overload, type_callable
 
 from ._access import load1, load3, load4, load33, loads, store1, store3, store4, store33, stores  # noqa: F401  (row access: kernels spell it E.load4 & co.)
 from ._jit import (
-    CACHE, RowLoop, bit_distance, bits_type, element, exponent_scales, inline, ir_inline, like,
-    lower_bit_distance, prange, prefer_no_gather, specialise,
+    CACHE, bit_distance, bits_type, element, exponent_scales, like, lower_bit_distance, prange, prefer_no_gather, select, specialise,
 )
-from ._trace import select, traced
 from ._trig import atan2
 
 
-@traced
+@element
 def qmul(p, q):
     """Hamilton product p⊗q: (p_w q_w − p_v·q_v, (p_w q_v + q_w p_v) + p_v × q_v).
 
@@ -46,17 +44,17 @@ def qmul(p, q):
     )
 
 
-@traced
+@element
 def qconj(q):
     return (q[0], -q[1], -q[2], -q[3])
 
 
-@traced
+@element
 def qdot(p, q):
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
 
 
-@inline
+@element
 def qscaled(q):
     """(a, c) with q = c·a exactly: a = q·2^(1-E), c = 2^(E-1), 2^E ≤ m < 2^(E+1)
     for m the largest |component| of q (c = 1 when m is 0 or inf).
@@ -82,7 +80,7 @@ def qscaled(q):
     return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), c
 
 
-@element
+@element(how="call")
 def qnorm(q):
     """|q| for any scale of q (no overflow or underflow in the squares)."""
     a, c = qscaled(q)
@@ -175,61 +173,6 @@ def _lower_far_any(context, builder, sig, args):
     return builder.icmp_unsigned(">", args[0], limit)
 
 
-FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit
-
-
-@inline
-def flags_max(flags, m):
-    """The largest of ``flags[:m]``. The batched loops store each row's
-    :func:`far_scale` flag in a small array per block of :data:`FLAG_BLOCK`
-    rows and reduce it after the block: a reduction inside the row loop makes
-    LLVM interleave it (several vectors at a time, wider loads and shuffles,
-    spills in the larger loops), so the loop would no longer be the one it was
-    without the flag."""
-    f = np.int32(0)
-    for j in range(m):
-        f = max(f, flags[j])
-    return f
-
-
-_PLAIN = _SCALED = _STORE = _FORMULA = _FAR_LOOP = None  # rebound in each copy (see FarRows, redo)
-
-
-def _far_rows(*args):
-    # the first pass of FarRows: each copy rebinds _FAR_LOOP (its _far_loop, inlined)
-    return _FAR_LOOP(args)
-
-
-def _far_loop(args):
-    # the loop of _far_rows on its arguments as a tuple (which numba can inline, as
-    # RowLoop.into does, where it cannot inline *args): each copy rebinds _PLAIN
-    n = args[0].shape[0]
-    far = np.int32(0)
-    for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
-        lo = b * FLAG_BLOCK
-        m = min(n - lo, FLAG_BLOCK)
-        flags = np.empty(FLAG_BLOCK, np.int32)
-        prefer_no_gather()
-        for j in range(m):
-            flags[j] = _PLAIN(lo + j, args)
-        far = max(far, flags_max(flags, m))
-    return far
-
-
-def _far_rows_again(*args):
-    # the second pass of FarRows: each copy rebinds _SCALED
-    for i in range(args[0].shape[0]):
-        prefer_no_gather()
-        _SCALED(i, args)
-
-
-def second_pass(scaled, name):
-    """The serial kernel ``k(*args)`` that calls ``scaled(i, args)`` on every row:
-    the second pass of :class:`FarRows` (and of loops that find their far rows
-    otherwise, as ``rotation``'s with :func:`far_excess`)."""
-    return RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
-
-
 def _redo(i, args):
     # the scaled pass of redo(): each copy rebinds _STORE and _FORMULA
     a = load4(args[0], i)
@@ -242,72 +185,7 @@ def redo(store, formula, name):
     is the quaternions q, whose last is the output, and whose far rows are
     those of |q|²: ``store(out, i, formula(q_i))`` on those rows (`formula`
     being the any-scale one, e.g. :func:`qinverse`)."""
-    return inline(specialise(_redo, "_" + name, home=formula, _STORE=store, _FORMULA=formula))
-
-
-class FarRows:
-    """The batched loop of a formula that is exact only near unit scale, over
-    the rows of its first argument; called like a :class:`quatarray._jit.RowLoop`.
-
-    ``plain(i, args)`` computes row i of the arrays ``args`` (the kernel's
-    arguments, as one tuple) on the inputs as they are, stores it, and returns
-    the row's :func:`far_scale` flag (an ``int32``, 1 where that is not exact:
-    far from unit scale, or 0, inf, nan). It should be an :func:`inline`
-    function, so that the loop vectorises as if written out. The loop keeps the
-    flags per block of :data:`FLAG_BLOCK` rows (:func:`flags_max`) and returns
-    whether one was set; only then a second, serial kernel calls
-    ``scaled(i, args)`` on every row, which redoes the row if it is flagged (on
-    the scaled input, say: :func:`qscaled`) and else leaves it. The common case
-    costs what the plain formula costs, and the second pass and the scaled
-    formulas compile only on the first input that needs them. Where an output
-    may be an input, ``plain`` leaves flagged rows holding that input, for
-    ``scaled`` to read. A call returns 1 when the second pass ran, else 0.
-
-    `name` names the compiled copies (their cache files, kept beside
-    `plain`'s module); ``parallel=False`` keeps the first pass serial.
-
-    Examples
-    --------
-    ``_norm = FarRows(_norm_plain, _norm_scaled, "norm")`` with::
-
-        @inline
-        def _norm_plain(i, args):
-            q, out = args
-            a = load4(q, i)
-            n2 = qdot(a, a)
-            out[i] = np.sqrt(n2)
-            return far_scale(n2)
-
-        @inline
-        def _norm_scaled(i, args):
-            q, out = args
-            a = load4(q, i)
-            if far_scale(qdot(a, a)):
-                out[i] = qnorm(a)
-    """
-
-    # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
-    # keeps LLVM from vectorising the loop, and so does numba-IR inlining of plain.)
-
-    def __init__(self, plain, scaled, name, parallel=True):
-        loop = specialise(_far_loop, "_" + name, home=plain, _PLAIN=plain)
-        self.first = RowLoop(specialise(_far_rows, "_" + name, home=plain, _FAR_LOOP=ir_inline(loop)),
-                             parallel=parallel, tuple_loop=loop)
-        self.again = second_pass(scaled, name)
-        self.__name__ = "_" + name
-
-    def __call__(self, *args):
-        far = self.first(*args)
-        if far:
-            self.again(*args)
-        return far
-
-    def into(self, k, *args):
-        """``self(*args, args[k])``, the first pass as :meth:`quatarray._jit.RowLoop.into`."""
-        far = self.first.into(k, *args)
-        if far:
-            self.again(*args, args[k])
-        return far
+    return element(specialise(_redo, "_" + name, home=formula, _STORE=store, _FORMULA=formula))
 
 
 @overload(far_scale, jit_options={"cache": CACHE})
@@ -318,7 +196,7 @@ def _far_scale(n2):
         return lambda n2: np.int32(0) if (n2 >= lo) & (n2 <= hi) else np.int32(1)
 
 
-@traced
+@element
 def pick4(c, a, b):
     """a if c else b for 4-tuples, as one select per component (both already
     computed), which keeps row loops vectorisable where a tuple-valued ``if``
@@ -326,23 +204,23 @@ def pick4(c, a, b):
     return select(c, a[:4], b[:4])
 
 
-@traced
+@element
 def pick3(c, a, b):
     """:func:`pick4` for 3-tuples."""
     return select(c, a[:3], b[:3])
 
 
-@traced
+@element
 def qscale(q, s):
     return (q[0] * s, q[1] * s, q[2] * s, q[3] * s)
 
 
-@traced
+@element
 def qneg(q):
     return (-q[0], -q[1], -q[2], -q[3])
 
 
-@inline
+@element
 def canonical_flip(q):
     """True when scipy's canonical form (w > 0, ties to the first non-zero of
     x, y, z being positive) needs the sign of q flipped. (Bitwise operators,
@@ -352,7 +230,7 @@ def canonical_flip(q):
     return (w < zero) | ((w == zero) & ((x < zero) | ((x == zero) & ((y < zero) | ((y == zero) & (z < zero))))))
 
 
-@element
+@element(how="call")
 def qnormalize(q):
     """q / |q| for any non-zero scale of q; zero, inf and nan give nan."""
     a = qscaled(q)[0]
@@ -360,7 +238,7 @@ def qnormalize(q):
     return (a[0] / n, a[1] / n, a[2] / n, a[3] / n)
 
 
-@element
+@element(how="call")
 def qinverse(q):
     """q* / |q|² for any non-zero scale of q (inf where 1/|q| overflows); zero gives nan."""
     a, c = qscaled(q)
@@ -368,37 +246,37 @@ def qinverse(q):
     return (a[0] * k, -a[1] * k, -a[2] * k, -a[3] * k)
 
 
-@traced
+@element
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@traced
+@element
 def vdot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@traced
+@element
 def vnorm(v):
     return np.sqrt(vdot(v, v))
 
 
-@traced
+@element
 def vadd(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@traced
+@element
 def vsub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@traced
+@element
 def vscale(a, k):
     return (a[0] * k, a[1] * k, a[2] * k)
 
 
-@element
+@element(how="call")
 def qrotate(q, v):
     """Vector part of q (0, v) q⁻¹, for any non-zero q (|q| need not be 1).
 
@@ -409,7 +287,7 @@ def qrotate(q, v):
     return qrotate_raw(a, v, qdot(a, a))
 
 
-@traced
+@element
 def qrotate_raw(q, v, n2):
     """:func:`qrotate` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w = q[0]
@@ -424,7 +302,7 @@ def qrotate_raw(q, v, n2):
     )
 
 
-@element
+@element(how="call")
 def qmatrix(q):
     """Row-major 3×3 rotation matrix of q/|q| (9-tuple), for any non-zero scale
     of q (:func:`qscaled`); zero q gives nan."""
@@ -432,7 +310,7 @@ def qmatrix(q):
     return qmatrix_raw(a, qdot(a, a))
 
 
-@traced
+@element
 def qmatrix_raw(q, n2):
     """:func:`qmatrix` on q as it is, given n2 = |q|² (no scaling: see :func:`far_scale`)."""
     w, x, y, z = q
@@ -448,7 +326,7 @@ def qmatrix_raw(q, n2):
     )  # fmt: skip
 
 
-@inline
+@element
 def half_angle(q):
     """atan2(|u|, |w|): half the rotation angle in [0, π/2] of a quaternion whose
     components may be squared (scale it with :func:`qscaled` first); nan for the
@@ -460,7 +338,7 @@ def half_angle(q):
     return like(aw, np.nan) if un + aw == like(aw, 0.0) else h
 
 
-@inline
+@element
 def half_angle_raw(q):
     """:func:`half_angle` without the zero-quaternion select (0 for it): for the
     first pass of the batched loops, where a zero q is a :func:`far_scale` row
@@ -468,7 +346,7 @@ def half_angle_raw(q):
     return atan2(vnorm((q[1], q[2], q[3])), abs(q[0]))
 
 
-@element
+@element(how="call")
 def sinc(x):
     """sin(x)/x, exact to rounding also for tiny x."""
     if abs(x) < like(x, 1e-4):
@@ -477,7 +355,7 @@ def sinc(x):
     return np.sin(x) / x
 
 
-@element
+@element(how="call")
 def qexp(q):
     """exp(w + u) = e^w (cos|u|, sin|u| u/|u|)."""
     th = vnorm((q[1], q[2], q[3]))
@@ -486,7 +364,7 @@ def qexp(q):
     return (e * np.cos(th), s * q[1], s * q[2], s * q[3])
 
 
-@element
+@element(how="call")
 def qlog(q):
     """Principal logarithm: (log|q|, θ u/|u|) with θ = atan2(|u|, w) in [0, π].
 
@@ -504,13 +382,13 @@ def qlog(q):
     return log_vector(q, lw)
 
 
-@element
+@element(how="call")
 def qlog_raw(q):
     """:func:`qlog` on q as it is (no scaling: see :func:`far_scale`)."""
     return log_vector(q, np.log(np.sqrt(qdot(q, q))))
 
 
-@inline
+@element
 def log_vector(q, lw):
     """(lw, θ u/|u|), θ = atan2(|u|, w): the logarithm of q given lw = log|q|."""
     un = vnorm((q[1], q[2], q[3]))

@@ -107,12 +107,12 @@ import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.extending import lower_builtin, type_callable
+from numba.extending import lower_builtin, type_callable, typeof_impl
 
 from . import _numba_internals as _ni
 from . import _trace
 from ._numba_internals import rehome
-from ._trace import Sym
+from ._trace import Sym, float_bits, select  # noqa: F401  (select and float_bits: part of the vocabulary)
 
 
 _ni.defer_blas_probe()
@@ -229,35 +229,49 @@ def _njit(fn, element=False, **options):
     return _ni.njit(fn, element, **{**_OPTIONS, **options})
 
 
-def element(fn):
-    """Compile a per-element function (scalars and tuples in, tuple out)."""
-    return _njit(fn, element=True)
+def element(fn=None, *, how=None):
+    """Decorator of a per-element formula: ``@element`` or ``@element(how=...)``.
+
+    `how` is how it becomes part of the loops that call it:
+
+    ``None`` (the default)
+        ``"trace"`` when the function is straight-line arithmetic that can be
+        traced (:func:`quatarray._trace.traceable`, read from its bytecode),
+        else ``"inline"``.
+    ``"trace"``
+        a builtin of each caller, its instructions emitted into the caller's IR
+        (:mod:`quatarray._trace`); no compile of its own: the cheapest to compile.
+    ``"inline"``
+        compiled once per signature (cached) and marked for LLVM to inline into
+        every caller before the loop vectoriser runs: for formulas that branch,
+        loop, read arrays or call compiled functions, inside loops that must
+        vectorise.
+    ``"call"``
+        compiled once per signature and called: for long formulas used by many
+        kernels that need not vectorise (LLVM still inlines small ones).
+
+    Called from Python, the function runs compiled (a twin with the CPython
+    wrapper) or, traced, as plain Python."""
+    if fn is None:
+        return lambda f: element(f, how=how)
+    if how not in (None, "trace", "inline", "call"):
+        raise ValueError(f"Expected `how` to be None, 'trace', 'inline' or 'call', got {how!r}.")
+    if how is None:
+        why = _trace.untraceable(fn, also=(like, fmuladd))
+        ELEMENTS[f"{fn.__module__}.{fn.__qualname__}"] = why
+        how = "inline" if why else "trace"
+    if how == "trace":
+        return _trace.traced(fn)
+    return _njit(fn, element=True, **({"forceinline": True} if how == "inline" else {}))
 
 
-def inline(fn):
-    """An element function that LLVM always inlines into its callers.
-
-    A plain :func:`element` may stay an LLVM call, which stops the loop
-    vectoriser; use this for the per-row math of loops that must run as SIMD
-    (see the module docstring).
-    """
-    return _njit(fn, element=True, forceinline=True)
+# For each element function decorated without `how`: None where it is traced, else why not.
+ELEMENTS = {}
 
 
-def ir_inline(fn):
-    """`fn` compiled as numba-IR inlined into its callers (``inline="always"``).
-
-    Only for a loop that one caller runs, whose own calls are to compiled element
-    functions: the caller then compiles and optimises it as part of itself, where
-    a call to a separate kernel has LLVM optimise its code once more in every
-    caller above it. Nesting multiplies compile time, since numba re-runs its
-    front end on the inlined body at every level: the spline's evaluation loop
-    inlines the method's run (a shallow body, measured no slower to compile than
-    LLVM inlining); keep deeper chains out. A loop that is also called on its
-    own is better called as the kernel it is: its callers then reuse its numba
-    typing and IR (the spline's piece kernels call the whole-table loops so: their
-    parallel copies compile in 1.0-1.9 s where inlining took 2.3-3.3 s, and run as fast).
-    """
+def _ir_inline(fn):
+    """`fn` compiled as numba-IR inlined into its callers (``inline="always"``):
+    see :func:`rowloop`'s `inline`."""
     return _njit(fn, inline="always")
 
 
@@ -336,7 +350,7 @@ def _into_copy(fn, k, nargs, tupled):
     cached beside `fn`."""
     names = ", ".join(f"a{i}" for i in range(nargs))
     name = f"{fn.__name__}_into{k}_{nargs}"
-    scope = {"_LOOP": ir_inline(fn)}
+    scope = {"_LOOP": _ir_inline(fn)}
     call = f"({names}, a{k})" if tupled else f"{names}, a{k}"
     exec(f"def {name}({names}):\n    return _LOOP({call})\n", scope)
     copy = scope[name]
@@ -403,11 +417,41 @@ def _check_layer():
         pass
 
 
-def rowloop(fn=None, *, rows=0, parallel=True):
-    """Decorator: ``@rowloop`` or ``@rowloop(rows=1, parallel=False)``."""
+def rowloop(fn=None, *, rows=0, parallel=True, far=None, inline=False):
+    """Decorator of a loop: ``@rowloop`` or ``@rowloop(rows=1, parallel=False, ...)``.
+
+    ``@rowloop``
+        a loop over the leading axis of argument `rows`, written once with
+        ``prange``: a serial and a parallel variant, the call picking one by
+        the number of rows (:class:`RowLoop`).
+    ``parallel=False``
+        the serial variant only: the loops that do not pay to run on threads,
+        and whole-array kernels that are not row loops (scans, searches). A
+        row loop may call another (its serial variant).
+    ``far=scaled``
+        the decorated function is the per-row formula ``plain(i, args)`` of a
+        formula exact only near unit scale; the loop runs it on every row and
+        ``scaled(i, args)`` on the rows it flags (:class:`FarRows`).
+    ``inline=True``
+        a serial loop that numba inlines into the one loop that calls it, at its
+        IR level (``inline="always"``): rarely, since nesting multiplies compile
+        time. A loop also called on its own is better called as the loop it is
+        (its callers reuse its typing); a shallow one called from one place only
+        (the spline's runs, inlined into its evaluation loop) may be inlined.
+    """
     if fn is None:
-        return lambda f: RowLoop(f, rows=rows, parallel=parallel)
+        return lambda f: rowloop(f, rows=rows, parallel=parallel, far=far, inline=inline)
+    if inline:
+        return _ir_inline(fn)
+    if far is not None:
+        return FarRows(fn, far, parallel=parallel)
     return RowLoop(fn, rows=rows, parallel=parallel)
+
+
+@typeof_impl.register(RowLoop)
+def _typeof_row_loop(loop, context):
+    # a row loop called from another kernel is its serial variant
+    return typeof_impl(loop.serial, context)
 
 
 def specialise(fn, suffix, home=None, **names):
@@ -434,13 +478,6 @@ def specialise(fn, suffix, home=None, **names):
     copy.__module__ = fn.__module__ if home is None else home.__module__
     copy.__doc__ = fn.__doc__
     return copy
-
-
-def kernel(fn=None, *, parallel=False):
-    """Compile a whole-array kernel that is not a plain row loop (scans, searches)."""
-    if fn is None:
-        return lambda f: _njit(f, parallel=parallel)
-    return _njit(fn, parallel=parallel)
 
 
 def like(x, c):
@@ -625,3 +662,127 @@ def _type_bit_distance(context):
 @lower_builtin(bit_distance, types.Float, types.Float)
 def _lower_bit_distance(context, builder, sig, args):
     return lower_bit_distance(builder, args[0], args[1], sig.args[0].bitwidth)
+
+
+# ---- the loops of formulas exact only near unit scale (rowloop(far=...))
+
+FLAG_BLOCK = 4096  # rows per block of range flags (flags_max): 16 kB, below the out= allocation limit
+
+
+@element
+def flags_max(flags, m):
+    """The largest of ``flags[:m]``. The batched loops store each row's
+    :func:`far_scale` flag in a small array per block of :data:`FLAG_BLOCK`
+    rows and reduce it after the block: a reduction inside the row loop makes
+    LLVM interleave it (several vectors at a time, wider loads and shuffles,
+    spills in the larger loops), so the loop would no longer be the one it was
+    without the flag."""
+    f = np.int32(0)
+    for j in range(m):
+        f = max(f, flags[j])
+    return f
+
+
+_PLAIN = _SCALED = _STORE = _FORMULA = _FAR_LOOP = None  # rebound in each copy (see FarRows, redo)
+
+
+def _far_rows(*args):
+    # the first pass of FarRows: each copy rebinds _FAR_LOOP (its _far_loop, inlined)
+    return _FAR_LOOP(args)
+
+
+def _far_loop(args):
+    # the loop of _far_rows on its arguments as a tuple (which numba can inline, as
+    # RowLoop.into does, where it cannot inline *args): each copy rebinds _PLAIN
+    n = args[0].shape[0]
+    far = np.int32(0)
+    for b in prange((n + FLAG_BLOCK - 1) // FLAG_BLOCK):
+        lo = b * FLAG_BLOCK
+        m = min(n - lo, FLAG_BLOCK)
+        flags = np.empty(FLAG_BLOCK, np.int32)
+        prefer_no_gather()
+        for j in range(m):
+            flags[j] = _PLAIN(lo + j, args)
+        far = max(far, flags_max(flags, m))
+    return far
+
+
+def _far_rows_again(*args):
+    # the second pass of FarRows: each copy rebinds _SCALED
+    for i in range(args[0].shape[0]):
+        prefer_no_gather()
+        _SCALED(i, args)
+
+
+def second_pass(scaled, name):
+    """The serial kernel ``k(*args)`` that calls ``scaled(i, args)`` on every row:
+    the second pass of :class:`FarRows` (and of loops that find their far rows
+    otherwise, as ``rotation``'s with :func:`far_excess`)."""
+    return RowLoop(specialise(_far_rows_again, "_" + name, home=scaled, _SCALED=scaled), parallel=False)
+
+
+class FarRows:
+    """The batched loop of a formula that is exact only near unit scale, over
+    the rows of its first argument; called like a :class:`quatarray._jit.RowLoop`.
+
+    ``plain(i, args)`` computes row i of the arrays ``args`` (the kernel's
+    arguments, as one tuple) on the inputs as they are, stores it, and returns
+    the row's :func:`far_scale` flag (an ``int32``, 1 where that is not exact:
+    far from unit scale, or 0, inf, nan). It should be an :func:`element`
+    LLVM inlines (the default for a function that reads arrays), so that the loop vectorises as if written out. The loop keeps the
+    flags per block of :data:`FLAG_BLOCK` rows (:func:`flags_max`) and returns
+    whether one was set; only then a second, serial kernel calls
+    ``scaled(i, args)`` on every row, which redoes the row if it is flagged (on
+    the scaled input, say: :func:`qscaled`) and else leaves it. The common case
+    costs what the plain formula costs, and the second pass and the scaled
+    formulas compile only on the first input that needs them. Where an output
+    may be an input, ``plain`` leaves flagged rows holding that input, for
+    ``scaled`` to read. A call returns 1 when the second pass ran, else 0.
+
+    The compiled copies are named after `plain` (``_norm_plain`` gives
+    ``_far_rows_norm``, their cache files beside `plain`'s);
+    ``parallel=False`` keeps the first pass serial. Made by ``rowloop(far=...)``.
+
+    Examples
+    --------
+    ``_norm = rowloop(_norm_plain, far=_norm_scaled)`` with::
+
+        @element
+        def _norm_plain(i, args):
+            q, out = args
+            a = load4(q, i)
+            n2 = qdot(a, a)
+            out[i] = np.sqrt(n2)
+            return far_scale(n2)
+
+        @element
+        def _norm_scaled(i, args):
+            q, out = args
+            a = load4(q, i)
+            if far_scale(qdot(a, a)):
+                out[i] = qnorm(a)
+    """
+
+    # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
+    # keeps LLVM from vectorising the loop, and so does numba-IR inlining of plain.)
+
+    def __init__(self, plain, scaled, parallel=True):
+        name = getattr(plain, "py_func", plain).__name__.strip("_").removesuffix("_plain")
+        loop = specialise(_far_loop, "_" + name, home=plain, _PLAIN=plain)
+        self.first = RowLoop(specialise(_far_rows, "_" + name, home=plain, _FAR_LOOP=_ir_inline(loop)),
+                             parallel=parallel, tuple_loop=loop)
+        self.again = second_pass(scaled, name)
+        self.__name__ = "_" + name
+
+    def __call__(self, *args):
+        far = self.first(*args)
+        if far:
+            self.again(*args)
+        return far
+
+    def into(self, k, *args):
+        """``self(*args, args[k])``, the first pass as :meth:`quatarray._jit.RowLoop.into`."""
+        far = self.first.into(k, *args)
+        if far:
+            self.again(*args, args[k])
+        return far

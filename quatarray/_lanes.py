@@ -10,7 +10,7 @@ equals :func:`quatarray.spline` on it alone, bit for bit. Used by
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, like, prange, rowloop, specialise
+from ._jit import element, like, prange, rowloop, specialise
 from ._slerp import arc_slerp, bezier_seg, bisect4, controls4, double4, fixed_arc, nlerp4, slerp4, squad_inner4, unflip_sign
 from .interpolation import tangent_scales
 from .splines import BLOCK, TABLED, next_run, resample_unit, unit_keys
@@ -41,13 +41,13 @@ def lane_groups(j):
     return max(1, -(-j // LANES))
 
 
-@inline
+@element
 def load_lane(a, b, l):
     """The quaternion of lane l at offset b (a key's start) of a lane-layout array."""
     return E.load1(a, b + l), E.load1(a, b + LANES + l), E.load1(a, b + 2 * LANES + l), E.load1(a, b + 3 * LANES + l)
 
 
-@inline
+@element
 def store_lane(a, b, l, q):
     E.store1(a, b + l, q[0])
     E.store1(a, b + LANES + l, q[1])
@@ -55,7 +55,7 @@ def store_lane(a, b, l, q):
     E.store1(a, b + 3 * LANES + l, q[3])
 
 
-@kernel
+@rowloop(parallel=False)
 def _gather_unit(p, cols, out):
     """Lane layout `out` of the streams ``p[:, cols[s]]`` (p of shape (K, J, 4)), each
     normalised and unflipped along K as :func:`quatarray.spline` does (the
@@ -79,7 +79,7 @@ def _gather_unit(p, cols, out):
                 store_lane(out, b, l, r)
 
 
-@inline
+@element
 def lane_neighbours(q, c, cp, cx, first, last, l):
     """(q_{n−1}, q_n, q_{n+1}) of lane l for the controls of key n, with the phantom end
     keys of ``_bezier_controls``: q_{−1} = double(q_1, q_0), q_K = double(q_{K−2}, q_{K−1})."""
@@ -141,7 +141,7 @@ def _lane_squad_controls(q, nk, s):
             store_lane(s, c, l, squad_inner4(load_lane(q, c - G4, l), load_lane(q, c, l), load_lane(q, c + G4, l)))
 
 
-@inline
+@element
 def put_lane_arc(arcs, c, l, p, q):
     """(θ, v) of the fixed arc p → q (as the table's ``put_arc``) at rows c … c + 4 of lane l."""
     th, v = fixed_arc(p, q)  # as splines.put_arc
@@ -152,13 +152,13 @@ def put_lane_arc(arcs, c, l, p, q):
     E.store1(arcs, (c + 4) * LANES + l, v[3])
 
 
-@inline
+@element
 def lane_arc(arcs, c, l):
     return (E.load1(arcs, c * LANES + l), E.load1(arcs, (c + 1) * LANES + l), E.load1(arcs, (c + 2) * LANES + l),
             E.load1(arcs, (c + 3) * LANES + l), E.load1(arcs, (c + 4) * LANES + l))
 
 
-@inline
+@element
 def lane_keys(keys, l):
     """Lane l of a segment's small table: q_n, c_out[n], c_in[n+1], q_{n+1}."""
     return load_lane(keys, 0, l), load_lane(keys, G4, l), load_lane(keys, 2 * G4, l), load_lane(keys, 3 * G4, l)
@@ -250,8 +250,8 @@ def _lane_spline(times, new_t, q, c_out, c_in, cols, nj, out):
 # multi-threaded by the size of `out` (4 per joint-sample): a sample costs one evaluation per stream
 _LANE_SPLINE = {
     name: rowloop(rows=7)(specialise(_lane_spline, f"_{name}",
-                                     lane_arcs=kernel(specialise(_lane_arcs, f"_{name}", KIND=m.kind)),
-                                     lane_eval=kernel(specialise(_lane_eval, f"_{name}", KIND=m.kind))))
+                                     lane_arcs=rowloop(specialise(_lane_arcs, f"_{name}", KIND=m.kind), parallel=False),
+                                     lane_eval=rowloop(specialise(_lane_eval, f"_{name}", KIND=m.kind), parallel=False)))
     for name, m in TABLED.items()
 }
 

@@ -7,10 +7,11 @@ they never allocate, validate or raise and keep the float type of their
 arguments.
 """
 
-from ._trace import traced
+
+from ._jit import element
 
 
-@traced
+@element
 def det33(a):
     return (
         a[0] * (a[4] * a[8] - a[5] * a[7])
@@ -19,7 +20,7 @@ def det33(a):
     )
 
 
-@traced
+@element
 def cofactor33(a):
     """Cofactor matrix: equals det(a)·a⁻ᵀ."""
     return (
@@ -29,7 +30,7 @@ def cofactor33(a):
     )  # fmt: skip
 
 
-@traced
+@element
 def matvec(m, r):
     """M r."""
     return (
@@ -39,7 +40,7 @@ def matvec(m, r):
     )
 
 
-@traced
+@element
 def matmul(a, b):
     """A B."""
     return (
@@ -55,17 +56,17 @@ def matmul(a, b):
     )
 
 
-@traced
+@element
 def transpose(a):
     return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
-@traced
+@element
 def scale9(a, s):
     return (a[0] * s, a[1] * s, a[2] * s, a[3] * s, a[4] * s, a[5] * s, a[6] * s, a[7] * s, a[8] * s)
 
 
-@traced
+@element
 def lerp9(a, b, u, t):
     """u A + t B."""
     return (

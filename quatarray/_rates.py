@@ -40,28 +40,27 @@ needed beyond those of the curve's value (one atan2 per arc, one sincos).
 import numpy as np
 
 from ._elements import cross, qconj, qmul, qrotate_raw, vadd, vdot, vscale, vsub
-from ._jit import like
-from ._trace import select, traced
+from ._jit import element, like, select
 from ._trig import atan2, sincos
 
 SMALL2 = 0.0625  # n² below which the series are used (n < 0.25: their terms to n¹⁰ are exact to 1e-17 there)
 TINY2 = 1e-6  # n² below which sin(n/2)/n takes its series (it does not cancel: only 0/0 is avoided)
 
 
-@traced
+@element
 def unrotate(q, v):
     """R_q^T v: v turned by the unit quaternion q⁻¹ = q*."""
     return qrotate_raw(qconj(q), v, like(q[0], 1.0))
 
 
-@traced
+@element
 def _series(n2, a0, a1, a2, a3, a4, a5):
     """a0 + a1 n² + … + a5 n¹⁰ (Horner in n²)."""
     return like(n2, a0) + n2 * (like(n2, a1) + n2 * (like(n2, a2) + n2 * (like(n2, a3) + n2 * (
         like(n2, a4) + n2 * like(n2, a5)))))
 
 
-@traced
+@element
 def jac_coeffs(n2, s, c):
     """(k1, k2) of the rotation vector r with |r|² = n2, given s = sin(|r|/2),
     c = cos(|r|/2): J(r) = I − k1[r]× + k2[r]×², k1 = (1 − cos n)/n², k2 = (n − sin n)/n³."""
@@ -76,7 +75,7 @@ def jac_coeffs(n2, s, c):
     return select(small, k1s, k1), select(small, k2s, k2)
 
 
-@traced
+@element
 def inv_coeff(n2, s, c):
     """ki of J(r)⁻¹ = I + ½[r]× + ki[r]×², ki = (1 − (n/2)cot(n/2))/n² (n² = n2,
     s, c = sin, cos of n/2)."""
@@ -89,7 +88,7 @@ def inv_coeff(n2, s, c):
     return select(small, kis, ki)
 
 
-@traced
+@element
 def acc_coeffs(n2, s, c):
     """(j1, j2) of N(r, r') = (r·r')(j1 r×r' + j2 r×(r×r')) + k2 r'×(r×r') (scipy's
     nonlinear term): j1 = (−n sin n − 2(cos n − 1))/n⁴, j2 = (−2n + 3 sin n − n cos n)/n⁵."""
@@ -108,7 +107,7 @@ def acc_coeffs(n2, s, c):
     return select(small, j1s, j1), select(small, j2s, j2)
 
 
-@traced
+@element
 def jac(r, k1, k2, v):
     """J(r)·v = v − k1 r×v + k2 r×(r×v)."""
     a = cross(r, v)
@@ -116,7 +115,7 @@ def jac(r, k1, k2, v):
     return (v[0] - k1 * a[0] + k2 * b[0], v[1] - k1 * a[1] + k2 * b[1], v[2] - k1 * a[2] + k2 * b[2])
 
 
-@traced
+@element
 def jac_inv(r, ki, v):
     """J(r)⁻¹·v = v + ½ r×v + ki r×(r×v)."""
     a = cross(r, v)
@@ -125,7 +124,7 @@ def jac_inv(r, ki, v):
     return (v[0] + h * a[0] + ki * b[0], v[1] + h * a[1] + ki * b[1], v[2] + h * a[2] + ki * b[2])
 
 
-@traced
+@element
 def jac_dot(r, rd, j1, j2, k2):
     """N(r, r') = J(r)'·r': the body acceleration of Exp(r) is J(r) r'' + N(r, r')."""
     dp = vdot(r, rd)
@@ -136,7 +135,7 @@ def jac_dot(r, rd, j1, j2, k2):
             dp * (j1 * cp[2] + j2 * ccp[2]) + k2 * dccp[2])
 
 
-@traced
+@element
 def arc_rotvec(p, th, v):
     """Rotation vector Log(p* ⊗ q) of the fixed arc p cos uθ + v sin uθ (v the unit
     tangent at p): 2θ·vec(p* ⊗ v), the arc's constant body rate per unit u."""
@@ -145,7 +144,7 @@ def arc_rotvec(p, th, v):
     return (f * d[1], f * d[2], f * d[3])
 
 
-@traced
+@element
 def log_arc(a, b):
     """(r, n2, s, c) of D = a* ⊗ b on the plain great arc: r = Log D (|r| = 2θ, θ ∈ [0, π]
     the arc's angle on S³), n2 = |r|², s = sin θ, c = cos θ (from D itself)."""
@@ -159,7 +158,19 @@ def log_arc(a, b):
     return vscale(dv, f), like(un, 4.0) * th * th, un / nd, d[0] / nd
 
 
-@traced
+@element
+def qexp_half(y, ny2, hs, hc):
+    """Exp(y) = (cos(n/2), sin(n/2) y/n), n = |y|, given hs, hc = sin, cos of n/2."""
+    small = ny2 < like(ny2, TINY2)
+    n = np.sqrt(select(small, like(ny2, 1.0), ny2))
+    # sin(n/2)/n: series below the threshold (and exactly 1/2 at 0)
+    f = hs / n
+    fs = like(ny2, 0.5) - ny2 * (like(ny2, 1.0 / 48.0) - ny2 * like(ny2, 1.0 / 3840.0))
+    f = select(small, fs, f)
+    return (hc, f * y[0], f * y[1], f * y[2])
+
+
+@element
 def slerp_rates(a, wa, b, wb, w, dw):
     """(s, Ω_s, y, k's of Exp(y), r, r', ki) of s = slerp(a, b, w) on the plain great arc,
     given a, b and their body rates wa, wb per unit u, and w, w' = dw.
@@ -180,19 +191,7 @@ def slerp_rates(a, wa, b, wb, w, dw):
     return qmul(a, e), ws, (r, rd, wd, n2, s_, c_, k2, ki, y, yd, ny2, hs, hc, ky1, ky2, e, wy)
 
 
-@traced
-def qexp_half(y, ny2, hs, hc):
-    """Exp(y) = (cos(n/2), sin(n/2) y/n), n = |y|, given hs, hc = sin, cos of n/2."""
-    small = ny2 < like(ny2, TINY2)
-    n = np.sqrt(select(small, like(ny2, 1.0), ny2))
-    # sin(n/2)/n: series below the threshold (and exactly 1/2 at 0)
-    f = hs / n
-    fs = like(ny2, 0.5) - ny2 * (like(ny2, 1.0 / 48.0) - ny2 * like(ny2, 1.0 / 3840.0))
-    f = select(small, fs, f)
-    return (hc, f * y[0], f * y[1], f * y[2])
-
-
-@traced
+@element
 def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     """(s, Ω_s, Γ_s) of s = slerp(a, b, w) given a, b, their body rates wa, wb and
     accelerations ga, gb per unit u, and w, w', w''."""

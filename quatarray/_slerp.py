@@ -18,21 +18,20 @@ convention of :func:`quatarray.power`.
 import numpy as np
 
 from ._elements import qconj, qdot, qmul
-from ._jit import element, fmuladd, inline, like
-from ._trace import float_bits, select, traced
+from ._jit import element, float_bits, fmuladd, like, select
 from ._trig import atan2, half_arc, sincos
 
 TIE_64 = 2.0**-46  # the tie band of flip_rule: 64 ulp of 1
 TIE_32 = 2.0**-17
 
 
-@traced
+@element
 def tie_band(x):
     """TIE of x's float type (see the module docstring)."""
-    return like(x, TIE_32 if float_bits(x) == 32 else TIE_64)
+    return like(x, select(float_bits(x) == 32, TIE_32, TIE_64))
 
 
-@traced
+@element
 def flip_rule(p, q, d, tol, tol_v):
     """(flip, chain) for q after p, given d (p·q, or 4p·q = |p + q|² − |p − q|²), tol
     the tie band on d's scale and tol_v on p·q's (TIE·(|p|² + |q|²)/2: what a
@@ -55,7 +54,7 @@ def flip_rule(p, q, d, tol, tol_v):
     return flip, chain
 
 
-@traced
+@element
 def unflip_sign(p, q):
     """What :func:`quatarray.unflip` does to q after p (as it stands): −1 negate (p·q < 0,
     or the tie rule of :func:`flip_rule`), 1 keep, 0 keep whatever the signs (a zero or
@@ -67,7 +66,7 @@ def unflip_sign(p, q):
     return select(chain, select(flip, -one, one), like(p[0], 0.0))
 
 
-@traced
+@element
 def arc(p, q, shortest):
     """(θ, v, f) of the great arc from unit p to unit (1 − f)·q: slerp = p cos tθ + v sin tθ.
 
@@ -119,7 +118,7 @@ def arc(p, q, shortest):
     return th, v, sgn
 
 
-@traced
+@element
 def arc_fast(p, q, shortest):
     """(θ, v, f, rare): :func:`arc` for the common pairs, with a cheaper tangent, and
     whether the pair is a rare one that needs :func:`arc` itself.
@@ -161,7 +160,7 @@ def arc_fast(p, q, shortest):
     return th, (v[0] * f, v[1] * f, v[2] * f, v[3] * f), sgn, rare
 
 
-@traced
+@element
 def fixed_arc(p, q):
     """(θ, v) of the plain great arc from p to q as a spline's table holds it: :func:`arc_fast`,
     or :func:`arc` for its rare pairs, both computed and one selected (for SIMD loops; a
@@ -172,7 +171,7 @@ def fixed_arc(p, q):
     return select(rare, th_x, th), select(rare, v_x, v)
 
 
-@traced
+@element
 def slerp4(p, q, t, shortest=0.0):
     """Great-arc interpolation of unit p and q at t (`shortest` 1.0: flip q into p's
     hemisphere): p cos tθ + v sin tθ on the arc of :func:`arc`, one sincos. Exact at
@@ -184,7 +183,7 @@ def slerp4(p, q, t, shortest=0.0):
     return select(t == like(t, 1.0), (k * q[0], k * q[1], k * q[2], k * q[3]), r)
 
 
-@element
+@element(how="call")
 def slerp_call(p, q, t):
     """:func:`slerp4` (plain great arc) as a called function, compiled once.
 
@@ -195,7 +194,7 @@ def slerp_call(p, q, t):
     return slerp4(p, q, t, like(t, 0.0))
 
 
-@inline
+@element
 def bezier4(q0, a, b, q1, t):
     """Spherical cubic Bézier by de Casteljau: six slerps."""
     p01 = slerp_call(q0, a, t)
@@ -204,21 +203,21 @@ def bezier4(q0, a, b, q1, t):
     return slerp_call(slerp_call(p01, p12, t), slerp_call(p12, p23, t), t)
 
 
-@inline
+@element
 def squad4(q0, s0, s1, q1, t):
     """Shoemake's squad: slerp(slerp(q0, q1, t), slerp(s0, s1, t), 2t(1 − t))."""
     h = like(t, 2.0) * t * (like(t, 1.0) - t)
     return slerp_call(slerp_call(q0, q1, t), slerp_call(s0, s1, t), h)
 
 
-@traced
+@element
 def double4(p, q):
     """Shoemake's Double: 2(p·q)q − p."""
     d2 = like(p[0], 2.0) * qdot(p, q)
     return (d2 * q[0] - p[0], d2 * q[1] - p[1], d2 * q[2] - p[2], d2 * q[3] - p[3])
 
 
-@traced
+@element
 def bisect4(p, q):
     """Shoemake's Bisect: (p + q)/|p + q|."""
     s = (p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3])
@@ -226,7 +225,7 @@ def bisect4(p, q):
     return (s[0] / n, s[1] / n, s[2] / n, s[3] / n)
 
 
-@traced
+@element
 def controls4(qp, qn, qx, f_out, f_in):
     """(a_n, b_n) of key qn between qp and qx: â = bisect(double(qp, qn), qx),
     a₀ = slerp(qn, â, 1/3), a_n = slerp(qn, a₀, f_out), b_n = slerp(qn, double(a₀, qn), f_in)."""
@@ -235,7 +234,7 @@ def controls4(qp, qn, qx, f_out, f_in):
     return slerp4(qn, a0, f_out, zero), slerp4(qn, double4(a0, qn), f_in, zero)
 
 
-@traced
+@element
 def log_unit(d):
     """Log of a unit quaternion as the rotation-vector half (θ u/|u|, θ = atan2(|u|, w)),
     its real part log|d| = 0 dropped; (π, 0, 0) for d = (−1, 0, 0, 0), as :func:`quatarray.log`."""
@@ -247,7 +246,7 @@ def log_unit(d):
     return select(some, (f * d[1], f * d[2], f * d[3]), (pi, zero, zero))
 
 
-@traced
+@element
 def squad_inner4(qp, qn, qx):
     """Shoemake's squad inner point of unit key qn between qp and qx:
     qn ⊗ exp(−(log(qn* ⊗ qx) + log(qn* ⊗ qp))/4) (the logs of unit quaternions: no real part)."""
@@ -263,13 +262,13 @@ def squad_inner4(qp, qn, qx):
     return qmul(qn, (c, f * x[0], f * x[1], f * x[2]))
 
 
-@traced
+@element
 def lerp4(p, q, s, t):
     """The linear blend s·p + t·q."""
     return (s * p[0] + t * q[0], s * p[1] + t * q[1], s * p[2] + t * q[2], s * p[3] + t * q[3])
 
 
-@traced
+@element
 def nlerp4(p, q, s, t):
     """The normalised blend (s·p + t·q)/|s·p + t·q|."""
     r = lerp4(p, q, s, t)
@@ -277,7 +276,7 @@ def nlerp4(p, q, s, t):
     return (r[0] / nr, r[1] / nr, r[2] / nr, r[3] / nr)
 
 
-@traced
+@element
 def arc_slerp(p, q, c, t):
     """slerp(p, q, t) = p cos tθ + v sin tθ on a fixed arc, c = (θ, v) from :func:`quatarray.splines.put_arc`."""
     th, v0, v1, v2, v3 = c
@@ -286,7 +285,7 @@ def arc_slerp(p, q, c, t):
     return select(t == like(t, 1.0), q, r)  # exact end (t = 0 is exact already: sincos(0) = (0, 1))
 
 
-@traced
+@element
 def bezier_seg(q0, a, b, q1, c0, c1, c2, t):
     """Segment value at u = t: the level-1 slerps on the three fixed control arcs, then two levels of slerp."""
     p01 = arc_slerp(q0, a, c0, t)

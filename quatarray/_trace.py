@@ -29,8 +29,12 @@ Python control flow on a symbol (``if``, ``and``, ``a if c else b``) is a
 typing error at the call: use :func:`select`.
 """
 
+import builtins
+import dis
 import inspect
+import numbers
 import threading
+import types as _pytypes
 from contextlib import contextmanager
 
 import numpy as np
@@ -332,6 +336,77 @@ def _tracing(now):
         _NOW.pop()
 
 
+# the functions a traced function may call besides other traced ones (and the
+# callers' additions: ``_jit.like`` and ``_jit.fmuladd``)
+CALLABLE = {abs, np.sqrt, np.fabs, np.absolute, np.rint, np.floor, np.copysign}
+TRACED = set()  # every traced function
+
+# opcodes of code that is not straight-line arithmetic on symbols (control flow,
+# loops, stores into arrays or attributes, containers, closures, exceptions)
+_REFUSED = ("JUMP", "FOR_ITER", "GET_ITER", "STORE_SUBSCR", "DELETE", "STORE_ATTR", "STORE_GLOBAL",
+            "RAISE", "RERAISE", "YIELD", "SEND", "SETUP", "BUILD_LIST", "BUILD_MAP", "BUILD_SET",
+            "LIST_", "DICT_", "SET_", "IMPORT", "MAKE_FUNCTION", "LOAD_CLOSURE", "LOAD_DEREF",
+            "RETURN_GENERATOR", "WITH_", "BEFORE_WITH", "CHECK_EXC", "PUSH_EXC", "POP_EXCEPT")
+
+
+def untraceable(fn, also=()):
+    """Why `fn` cannot be traced (:func:`traced`), or None when it can: read from its
+    bytecode, it must be straight line (no branch, loop or exception), index only by
+    constants (tuples, not arrays), read no attribute but a module's function, and
+    call only traced functions, :data:`CALLABLE`, :func:`select`,
+    :func:`float_bits` and the functions `also`; its globals are numbers, tuples of
+    them and those functions, all defined when it is asked (define a function's
+    callees above it). Conservative: a reason for whatever it cannot tell (the
+    function is then compiled instead, which is always right)."""
+    code = getattr(fn, "__code__", None)
+    if code is None or code.co_flags & (inspect.CO_GENERATOR | inspect.CO_COROUTINE) or code.co_freevars:
+        return "not a plain function"
+    ok = CALLABLE | TRACED | {select, float_bits} | set(also)
+    ins = list(dis.get_instructions(fn))
+    for k, x in enumerate(ins):
+        op = x.opname
+        if any(r in op for r in _REFUSED):
+            return f"{op} (control flow, a loop, a store or a container)"
+        prev = ins[k - 1] if k else None
+        if op == "BINARY_SUBSCR" and not (  # a constant index or slice (of a tuple)
+                prev.opname == "LOAD_CONST"
+                or prev.opname == "BUILD_SLICE" and all(y.opname == "LOAD_CONST" for y in ins[k - 1 - prev.arg:k - 1])):
+            return "an index that is not a constant"
+        if op == "BINARY_SLICE" and not all(y.opname == "LOAD_CONST" for y in ins[k - 2:k]):
+            return "a slice that is not constant"
+        if op in ("LOAD_ATTR", "LOAD_METHOD") and prev.opname not in ("LOAD_GLOBAL", "LOAD_ATTR", "LOAD_METHOD"):
+            return f"the attribute {x.argval!r} of a value"  # an array's shape, say: only a module's names
+        if op == "LOAD_GLOBAL":
+            obj = _resolve(fn, ins, k)
+            if obj is _MISSING:
+                return f"the global {x.argval!r} is not defined yet"
+            if isinstance(obj, _pytypes.ModuleType):
+                return f"the module {x.argval!r} as a value"
+            if callable(obj) and obj not in ok or not callable(obj) and not _is_number(obj):
+                return f"the global {x.argval!r} is not a number or a traceable function"
+    return None
+
+
+_MISSING = object()
+
+
+def _resolve(fn, ins, k):
+    """The object the LOAD_GLOBAL at ins[k] and the attribute loads after it name."""
+    name = ins[k].argval
+    obj = fn.__globals__.get(name, getattr(builtins, name, _MISSING))
+    for x in ins[k + 1:]:
+        if x.opname not in ("LOAD_ATTR", "LOAD_METHOD") or not isinstance(obj, _pytypes.ModuleType):
+            break
+        obj = getattr(obj, x.argval, _MISSING)
+    return obj
+
+
+def _is_number(x):
+    if isinstance(x, tuple):
+        return all(_is_number(y) for y in x)
+    return isinstance(x, (numbers.Number, np.number))
+
+
 def traced(fn):
     """Make `fn` (straight-line arithmetic, see the module docstring) a builtin of the
     kernels that call it; it stays a plain function in Python."""
@@ -359,6 +434,7 @@ def traced(fn):
             out = fn(*(_symbols(t, v, builder) for t, v in zip(sig.args, args)))
             return _pack(context, builder, out, sig.return_type)
 
+    TRACED.add(fn)
     return fn
 
 

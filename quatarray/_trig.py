@@ -45,8 +45,7 @@ only up to ``sincos_limit``).
 
 import numpy as np
 
-from ._jit import fmuladd, like
-from ._trace import float_bits, select, traced
+from ._jit import element, float_bits, fmuladd, like, select
 
 # fdlibm __kernel_sin / __kernel_cos on [-π/4, π/4]
 S1 = -1.66666666666666324348e-01
@@ -98,20 +97,21 @@ PIO4_LO = 3.06161699786838301793e-17  # fdlibm atanlo[3]
 TAN_PI8 = 0.41421356237309503
 
 
-@traced
+@element
 def reduce_pio2(x, k):
     """x − k·π/2 (Cody–Waite): three pieces of π/2 in float64 (k·piece exact for
     |k| < 2²⁰), four in float32 (exact for |k| < 2¹⁵, the differences exact
     (Sterbenz) where they cancel), as fused multiply-adds; the float type picks the
     pieces at compile time."""
-    pieces = (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4) if float_bits(x) == 32 else (PIO2_1, PIO2_2, PIO2_3, PIO2_4)
-    r = x
-    for p in pieces:  # the last matters only within ~1e-9 of a multiple of π/2 (float64)
-        r = fmuladd(-k, like(x, p), r)
+    p = select(float_bits(x) == 32, (PIO2F_1, PIO2F_2, PIO2F_3, PIO2F_4), (PIO2_1, PIO2_2, PIO2_3, PIO2_4))
+    r = fmuladd(-k, like(x, p[0]), x)  # the last piece matters only within ~1e-9 of a multiple of π/2 (float64)
+    r = fmuladd(-k, like(x, p[1]), r)
+    r = fmuladd(-k, like(x, p[2]), r)
+    r = fmuladd(-k, like(x, p[3]), r)
     return r
 
 
-@traced
+@element
 def sincos(x):
     """(sin x, cos x), branch-free; accurate for |x| ≤ :func:`sincos_limit`."""
     k = np.rint(x * like(x, INVPIO2))
@@ -143,7 +143,7 @@ def sincos(x):
     return sn, cs
 
 
-@traced
+@element
 def atan_small(x):
     """atan(x) for |x| ≤ 7/16 (fdlibm)."""
     z = x * x
@@ -155,7 +155,7 @@ def atan_small(x):
     return fmuladd(-x, s1 + s2, x)
 
 
-@traced
+@element
 def half_arc(a, b):
     """atan2(a, b) for a, b ≥ 0, in [0, π/2], branch-free.
 
@@ -180,7 +180,7 @@ def half_arc(a, b):
     return select(swap, refl, y)
 
 
-@traced
+@element
 def atan2(y, x):
     """atan2(y, x) in all four quadrants, branch-free (same reduction as
     :func:`half_arc`, then the quadrant).
@@ -216,7 +216,7 @@ SINCOS_LIMIT_64 = 1.0e6
 SINCOS_LIMIT_32 = 32768.0
 
 
-@traced
+@element
 def sincos_limit(x):
     """The largest |x| for which :func:`sincos` is accurate to x's float rounding."""
-    return like(x, SINCOS_LIMIT_32 if float_bits(x) == 32 else SINCOS_LIMIT_64)
+    return like(x, select(float_bits(x) == 32, SINCOS_LIMIT_32, SINCOS_LIMIT_64))

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from . import _elements as E
-from ._jit import RowLoop, inline, kernel, like, min_rows, prange, rowloop, specialise
+from ._jit import element, like, min_rows, prange, rowloop, specialise
 from ._validate import as_float, check_core, elementwise, float_dtype, leading_shape, scan, where
 
 Q = (4,)
@@ -36,7 +36,7 @@ def _conjugate(q, out):
 # on the scaled q (E.qscaled), only when there are some.
 
 
-@inline
+@element
 def _inverse_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -46,10 +46,10 @@ def _inverse_plain(i, args):
     return f
 
 
-_inverse = E.FarRows(_inverse_plain, E.redo(E.store4, E.qinverse, "inverse"), "inverse")
+_inverse = rowloop(_inverse_plain, far=E.redo(E.store4, E.qinverse, "inverse"))
 
 
-@inline
+@element
 def _normalize_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -60,10 +60,10 @@ def _normalize_plain(i, args):
     return f
 
 
-_normalize = E.FarRows(_normalize_plain, E.redo(E.store4, E.qnormalize, "normalize"), "normalize")
+_normalize = rowloop(_normalize_plain, far=E.redo(E.store4, E.qnormalize, "normalize"))
 
 
-@inline
+@element
 def _norm_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -72,7 +72,7 @@ def _norm_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
+@element
 def _norm_scaled(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -80,7 +80,7 @@ def _norm_scaled(i, args):
         out[i] = E.qnorm(a)
 
 
-_norm = E.FarRows(_norm_plain, _norm_scaled, "norm")
+_norm = rowloop(_norm_plain, far=_norm_scaled)
 
 
 @rowloop
@@ -95,7 +95,7 @@ def _exp(q, out):
         E.store4(out, i, E.qexp(E.load4(q, i)))
 
 
-@inline
+@element
 def _log_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -104,7 +104,7 @@ def _log_plain(i, args):
     return f
 
 
-_log = E.FarRows(_log_plain, E.redo(E.store4, E.qlog, "log"), "log")
+_log = rowloop(_log_plain, far=E.redo(E.store4, E.qlog, "log"))
 
 
 @rowloop
@@ -124,7 +124,7 @@ def _canonical(q, out):
         E.store4(out, i, E.qneg(a) if E.canonical_flip(a) else a)
 
 
-@inline
+@element
 def _angle_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -132,7 +132,7 @@ def _angle_plain(i, args):
     return E.far_scale(E.qdot(a, a))
 
 
-@inline
+@element
 def _angle_scaled(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -140,14 +140,14 @@ def _angle_scaled(i, args):
         out[i] = like(out, 2.0) * E.half_angle(E.qscaled(a)[0])
 
 
-_angle = E.FarRows(_angle_plain, _angle_scaled, "angle")
+_angle = rowloop(_angle_plain, far=_angle_scaled)
 
 
 # distance's far rows: |p⁻¹q|² = |p|²|q|² outside the range (the squares of the
 # product's components could over- or underflow)
 
 
-@inline
+@element
 def _distance_plain(i, args):
     p, q, out = args
     d = E.qmul(E.qconj(E.load4(p, i)), E.load4(q, i))
@@ -155,7 +155,7 @@ def _distance_plain(i, args):
     return E.far_scale(E.qdot(d, d))
 
 
-@inline
+@element
 def _distance_scaled(i, args):
     p, q, out = args
     a, b = E.load4(p, i), E.load4(q, i)
@@ -164,10 +164,10 @@ def _distance_scaled(i, args):
         out[i] = like(out, 2.0) * E.half_angle(E.qmul(E.qconj(E.qscaled(a)[0]), E.qscaled(b)[0]))
 
 
-_distance = E.FarRows(_distance_plain, _distance_scaled, "distance")
+_distance = rowloop(_distance_plain, far=_distance_scaled)
 
 
-@kernel
+@rowloop(parallel=False)
 def _cumprod(q, out):
     # q, out: (K, M, 4); the scan runs along axis 0 for each of the M columns.
     for m in range(q.shape[1]):
@@ -224,8 +224,8 @@ def _outer_sum_rows(q, w, part):
 
 
 # serial and parallel dispatchers (the parallel one compiles only for a large sum)
-_outer_sum = RowLoop(_outer_sum_rows)
-_outer_sum_unit = RowLoop(specialise(_outer_sum_rows, "_unit", UNIT=True))
+_outer_sum = rowloop(_outer_sum_rows)
+_outer_sum_unit = rowloop(specialise(_outer_sum_rows, "_unit", UNIT=True))
 
 _PAIRS = [(0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3)]
 

@@ -42,7 +42,7 @@ NOT_UNIQUE = 2e-15
 # per-element math
 
 
-@element
+@element(how="call")
 def perpendicular(v):
     """scipy's axis for a half turn away from unit `v` (``_align_vectors_fixed``):
     with i the index of v's smallest |component|, r[i−1] = v[i−2], r[i−2] = −v[i−1]."""
@@ -59,7 +59,7 @@ def perpendicular(v):
     return (-v[1], v[0], zero)
 
 
-@element
+@element(how="call")
 def vlength(v):
     """|v| without overflow or underflow in the squares (scaled by the largest
     |component|); 0, inf and nan as the plain formula."""
@@ -70,7 +70,7 @@ def vlength(v):
     return E.vnorm(v)
 
 
-@element
+@element(how="call")
 def shortest_arc(b, a):
     """The rotation of least angle taking the direction of `b` to that of `a`,
     as scipy's ``align_vectors`` builds it for one pair: the turn by
@@ -100,7 +100,7 @@ def shortest_arc(b, a):
     return (ch, k * c[0], k * c[1], k * c[2])
 
 
-@element
+@element(how="call")
 def davenport(bm, m):
     """Optimal rotation for B = Σ w a bᵀ (row-major 9-tuple, float64); `m` a
     scratch array of 32 float64 (the caller's, so that no kernel allocates).
@@ -199,7 +199,7 @@ def davenport(bm, m):
     return q, lam, zeta, kappa, gmin
 
 
-@element
+@element(how="call")
 def load_pair(a, b, w, p, i, ra, rb):
     """Pair i of problem p as float64, its vectors times `ra` and `rb` (see
     :func:`pair_scale`): (ra a_i, rb b_i, w_i). (``np.float64``: numba's ``float()``
@@ -219,7 +219,7 @@ def load_pair(a, b, w, p, i, ra, rb):
 SAFE = (2.0**-600, 2.0**600)
 
 
-@element
+@element(how="call")
 def pair_scale(x, p, skip):
     """A power of two r (exact) that brings the largest |component| m of problem p's
     vectors in `x` (a or b) into [2, 4): sums of products of r_a·a and r_b·b (B,
@@ -245,7 +245,7 @@ def pair_scale(x, p, skip):
 TINY = 2.0**-1022  # the smallest normal float64
 
 
-@element
+@element(how="call")
 def unscale(ra, rb):
     """(t, x, y) with 1/ra = t·x and 1/rb = t·y, t = max(1/ra, 1/rb) (powers of two):
     a sum of squares of the unscaled problem, Σ|a − b|² = t²·Σ|x·ra·a − y·rb·b|², is
@@ -254,7 +254,7 @@ def unscale(ra, rb):
     return t, 1.0 / ra / t, 1.0 / rb / t
 
 
-@element
+@element(how="call")
 def accumulate(a, b, w, p, ra, rb):
     """(B, Σ wᵢ|aᵢ|², Σ wᵢ|bᵢ|², Σ wᵢ, the number of infinite weights, the first one's
     pair) of problem p, its vectors a times `ra` and b times `rb`; B = Σ wᵢ aᵢ bᵢᵀ row-major."""
@@ -282,7 +282,7 @@ def accumulate(a, b, w, p, ra, rb):
     return bm, ssa, ssb, wsum, ninf, kinf
 
 
-@element
+@element(how="call")
 def fixed_fit(a, b, w, p, k):
     """scipy's ``_align_vectors_fixed`` for problem p with primary pair k:
     the shortest arc between the primary vectors, then the turn φ about the

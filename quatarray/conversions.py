@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, inline, like, prange, rowloop
+from ._jit import element, like, prange, rowloop
 from ._mat33 import cofactor33, det33
 from ._trig import half_arc, sincos, sincos_limit
 from ._validate import as_float, elementwise, is_weak, where
@@ -35,7 +35,7 @@ _FROM_DEG = math.pi / 180.0
 # per-element formulas
 
 
-@element
+@element(how="call")
 def sumsq9(a):
     s = a[0] * a[0]
     for k in range(1, 9):
@@ -43,7 +43,7 @@ def sumsq9(a):
     return s
 
 
-@element
+@element(how="call")
 def max9abs(a):
     m = abs(a[0])
     for k in range(1, 9):
@@ -51,7 +51,7 @@ def max9abs(a):
     return m
 
 
-@element
+@element(how="call")
 def near_orthogonal(a):
     """scipy's test ``np.isclose(a aᵀ, I, atol=1e-12)`` (default rtol 1e-5)."""
     atol = like(a[0], 1e-12)
@@ -73,7 +73,7 @@ def near_orthogonal(a):
     )
 
 
-@element
+@element(how="call")
 def polar33(a, eps):
     """Orthogonal polar factor of a (det > 0): the nearest rotation, U Vᵀ of an SVD.
 
@@ -107,7 +107,7 @@ def polar33(a, eps):
     return x
 
 
-@inline
+@element
 def shepperd_raw(a):
     """The quaternion of a rotation matrix (9-tuple), unnormalised (its norm is 4
     times the largest of |w|, |x|, |y|, |z| for a rotation), choosing on the largest
@@ -128,7 +128,7 @@ def shepperd_raw(a):
     return E.pick4(c3, (one + tr, d21, d20, d10), E.pick4(c2, q2, E.pick4(c1, q1, q0)))
 
 
-@inline
+@element
 def shepperd_unit(a):
     """(:func:`shepperd_raw` normalised, its |q|² before): on q as it is, exact where
     that |q|² is in range (E.far_scale), as for every rotation matrix (4 to 16).
@@ -139,14 +139,14 @@ def shepperd_unit(a):
     return (q[0] * r, q[1] * r, q[2] * r, q[3] * r), n2
 
 
-@inline
+@element
 def qrotvec(q):
     """Rotation vector θ·axis of q/|q| on scipy's canonical sign, with
     θ = 2 atan2(|u|, |w|) in [0, π]; any scale of q (:func:`_elements.qscaled`)."""
     return qrotvec_raw(E.qscaled(q)[0])[0]
 
 
-@inline
+@element
 def qrotvec_raw(q):
     """(:func:`qrotvec` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`
     (|q|² from the squares |u| is taken from, for the range flag)."""
@@ -161,7 +161,7 @@ def qrotvec_raw(q):
     return (f * x, f * y, f * z), u2 + w * w
 
 
-@inline
+@element
 def qaxis_angle(q):
     """(unit axis, angle in [0, π]); identity → ((1, 0, 0), 0); zero q → nan;
     any scale of q (:func:`_elements.qscaled`)."""
@@ -169,7 +169,7 @@ def qaxis_angle(q):
     return u, a
 
 
-@inline
+@element
 def qaxis_angle_raw(q):
     """(:func:`qaxis_angle` on q as it is, |q|²): no scaling, see
     :func:`_elements.far_scale` (|q|² from the squares |u| is taken from)."""
@@ -189,7 +189,7 @@ def qaxis_angle_raw(q):
     return (x / k, y / k, z / k), ang, n2
 
 
-@inline
+@element
 def half_sinc(h, s):
     """sin(h)/(2h) given s = sin h; a series for tiny h (exact to rounding)."""
     h2 = h * h
@@ -197,7 +197,7 @@ def half_sinc(h, s):
     return series if h < like(h, 1e-4) else like(h, 0.5) * s / h
 
 
-@inline
+@element
 def rotvec_quat(v):
     """exp of (0, v/2): (cos(θ/2), sin(θ/2)/θ · v), θ = |v|; exact for tiny θ."""
     h = like(v[0], 0.5) * E.vnorm(v)
@@ -215,7 +215,7 @@ def rotvec_quat(v):
 # on the scaled q (E.qscaled), only when there are some.
 
 
-@inline
+@element
 def _as_matrix_plain(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -224,7 +224,7 @@ def _as_matrix_plain(i, args):
     return E.far_scale(n2)
 
 
-_as_matrix = E.FarRows(_as_matrix_plain, E.redo(E.store33, E.qmatrix, "as_matrix"), "as_matrix")
+_as_matrix = rowloop(_as_matrix_plain, far=E.redo(E.store33, E.qmatrix, "as_matrix"))
 
 
 @rowloop
@@ -262,7 +262,7 @@ def _from_matrix(m, out):
     return bad if bad < n else -1
 
 
-@inline
+@element
 def _from_matrix_valid_plain(i, args):
     m, out = args
     q, n2 = shepperd_unit(E.load33(m, i))
@@ -270,7 +270,7 @@ def _from_matrix_valid_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
+@element
 def _from_matrix_valid_scaled(i, args):
     m, out = args
     q = shepperd_raw(E.load33(m, i))
@@ -283,10 +283,10 @@ def _from_matrix_valid_scaled(i, args):
         E.store4(out, i, (q[0] / n, q[1] / n, q[2] / n, q[3] / n))
 
 
-_from_matrix_valid = E.FarRows(_from_matrix_valid_plain, _from_matrix_valid_scaled, "from_matrix_valid")
+_from_matrix_valid = rowloop(_from_matrix_valid_plain, far=_from_matrix_valid_scaled)
 
 
-@inline
+@element
 def _as_rotvec_plain(i, args):
     q, out = args
     rv, n2 = qrotvec_raw(E.load4(q, i))
@@ -294,7 +294,7 @@ def _as_rotvec_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
+@element
 def _as_rotvec_scaled(i, args):
     q, out = args
     a = E.load4(q, i)
@@ -302,14 +302,14 @@ def _as_rotvec_scaled(i, args):
         E.store3(out, i, qrotvec(a))
 
 
-_as_rotvec = E.FarRows(_as_rotvec_plain, _as_rotvec_scaled, "as_rotvec")
+_as_rotvec = rowloop(_as_rotvec_plain, far=_as_rotvec_scaled)
 
 
 # from_rotvec's far rows: half angles beyond the fast sincos range (or inf),
 # redone with libm's sin and cos (as quatarray.euler does)
 
 
-@inline
+@element
 def _from_rotvec_plain(i, args):
     r, out = args
     v = E.load3(r, i)
@@ -320,7 +320,7 @@ def _from_rotvec_plain(i, args):
     return np.int32(1) if h > sincos_limit(h) else np.int32(0)
 
 
-@inline
+@element
 def _from_rotvec_scaled(i, args):
     r, out = args
     v = E.load3(r, i)
@@ -330,10 +330,10 @@ def _from_rotvec_scaled(i, args):
         E.store4(out, i, (np.cos(h), k * v[0], k * v[1], k * v[2]))
 
 
-_from_rotvec = E.FarRows(_from_rotvec_plain, _from_rotvec_scaled, "from_rotvec")
+_from_rotvec = rowloop(_from_rotvec_plain, far=_from_rotvec_scaled)
 
 
-@inline
+@element
 def _as_axis_angle_plain(i, args):
     q, axis, ang = args
     u, t, n2 = qaxis_angle_raw(E.load4(q, i))
@@ -342,7 +342,7 @@ def _as_axis_angle_plain(i, args):
     return E.far_scale(n2)
 
 
-@inline
+@element
 def _as_axis_angle_scaled(i, args):
     q, axis, ang = args
     a = E.load4(q, i)
@@ -352,7 +352,7 @@ def _as_axis_angle_scaled(i, args):
         ang[i] = t
 
 
-_as_axis_angle = E.FarRows(_as_axis_angle_plain, _as_axis_angle_scaled, "as_axis_angle")
+_as_axis_angle = rowloop(_as_axis_angle_plain, far=_as_axis_angle_scaled)
 
 
 @rowloop

@@ -27,7 +27,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _trig
-from ._jit import element, inline, like, prange, rowloop
+from ._jit import element, like, prange, rowloop
 from ._trig import atan2, sincos_limit
 from ._validate import as_float, check_core
 
@@ -48,7 +48,7 @@ _GIMBAL = (
 # per-element helpers
 
 
-@inline
+@element(how="inline")
 def sincos_call(x):
     """:func:`quatarray._trig.sincos` as an element function of its own, compiled
     once and inlined by LLVM into :func:`_from_euler`'s loop (``inline``, like
@@ -60,14 +60,14 @@ def sincos_call(x):
     return _trig.sincos(x)
 
 
-@inline
+@element(how="inline")
 def beyond(x):
     """True where |x| exceeds the range in which :func:`quatarray._trig.sincos`
     is accurate (inf too, not nan): those rows are redone with libm."""
     return abs(x) > sincos_limit(x)
 
 
-@inline
+@element
 def wrap(a):
     """Bring an angle in [-3π, 3π] into [-π, π] by one step of 2π, as scipy does."""
     pi = like(a, math.pi)
@@ -86,14 +86,14 @@ def wrap(a):
 # vectorise and ran slower than the serial SIMD loop with two cores.
 
 
-@inline
+@element
 def axis_quat(axis, s, c):
     """(cos h, sin h along axis 0/1/2), built with selects."""
     zero = like(s, 0.0)
     return (c, s if axis == 0 else zero, s if axis == 1 else zero, s if axis == 2 else zero)
 
 
-@element
+@element(how="call")
 def compose_axes(e0, e1, e2, intrinsic):
     """Product of three elementary quaternions in scipy's order:
     intrinsic (e0 e1) e2, extrinsic e2 (e1 e0)."""

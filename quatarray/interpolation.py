@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import fmuladd, kernel, like, prange, rowloop
+from ._jit import fmuladd, like, prange, rowloop
 from ._slerp import (
     arc,
     arc_fast,
@@ -239,7 +239,7 @@ def _squad(q0, s0, s1, q1, t, out):
             E.store4(out, i, squad4(E.load4(q0, i), E.load4(s0, i), E.load4(s1, i), E.load4(q1, i), E.load1(t, i)))
 
 
-@kernel
+@rowloop(parallel=False)
 def _unflip(q, out):
     # q, out: (K, M, 4); the sign scan runs along axis 0 for each of the M columns.
     for m in range(q.shape[1]):
@@ -253,7 +253,7 @@ def _unflip(q, out):
             prev = cur
 
 
-@kernel
+@rowloop(parallel=False)
 def _interval_rates(q, h, body, w):
     """w[k] = rotation vector of the step k → k+1 divided by h[k] (sign-flip safe)."""
     for k in range(q.shape[0] - 1):

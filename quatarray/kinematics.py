@@ -34,7 +34,7 @@ import numpy as np
 
 from . import _elements as E
 from . import _jit
-from ._jit import inline, kernel, like, prange, specialise
+from ._jit import element, like, prange, rowloop, specialise
 from ._trig import sincos_limit
 from ._validate import as_float, as_times, check_core, check_times, first_not_increasing, not_increasing, result_dtype
 from .algebra import multiply as qa_multiply
@@ -52,7 +52,7 @@ TILE = 4096  # the fewest steps a block of the threaded scan takes
 MEAN = True  # rebound in each copy of _exponentials (see _EXPONENTIALS)
 
 
-@inline
+@element
 def step_rotvec(omega, h, k, mean):
     """The rotation vector r h_k of step k: r = (ω_k + ω_{k+1})/2 (`mean`) or ω_k."""
     a = E.load3(omega, k)
@@ -77,10 +77,10 @@ def _exponentials(omega, h, out):
     return far
 
 
-_EXPONENTIALS = {m: kernel(specialise(_exponentials, "_mean" if m else "_start", MEAN=m)) for m in (True, False)}
+_EXPONENTIALS = {m: rowloop(specialise(_exponentials, "_mean" if m else "_start", MEAN=m), parallel=False) for m in (True, False)}
 
 
-@kernel
+@rowloop(parallel=False)
 def _exponentials_far(omega, h, mean, out):
     for k in range(out.shape[0] - 1):
         v = step_rotvec(omega, h, k, mean)
@@ -90,7 +90,7 @@ def _exponentials_far(omega, h, mean, out):
             E.store4(out, k + 1, (np.cos(half), s * v[0], s * v[1], s * v[2]))
 
 
-@inline
+@element
 def scan_step(out, k, acc, body, unit):
     """out[k] = e_k ⊗ acc (space) or acc ⊗ e_k (body), e_k = out[k] on entry, in float64
     (``np.float64``: numba's ``float()`` keeps float32); with `unit` (float32 rows) e_k
@@ -108,7 +108,7 @@ def scan_step(out, k, acc, body, unit):
 CHAINS = 4  # independent product chains per scan (instruction-level parallelism)
 
 
-@kernel
+@rowloop(parallel=False)
 def _scan(out, q0, body, unit):
     """In place, out[k] = e_k ⊗ out[k−1] (space) or out[k−1] ⊗ e_k (body) from
     out[−1] = q0: out[k] holds the step exponential e_k on entry. Returns the last
@@ -168,7 +168,7 @@ def _block(w, h, out, q0, mean, body):
         acc = np.array(_scan(o[1:], acc, body, unit))
 
 
-@kernel
+@rowloop(parallel=False)
 def _carry_in(rows, carry, body):
     """In place, rows[k] = carry ⊗ rows[k] (body) or rows[k] ⊗ carry (space), in float64."""
     c = (np.float64(carry[0]), np.float64(carry[1]), np.float64(carry[2]), np.float64(carry[3]))

@@ -13,7 +13,7 @@ import numpy as np
 
 from . import _elements as E
 from ._compat import rotation_as_wxyz, rotation_from_wxyz
-from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
+from ._jit import element, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, refuse_masked, shape_error
 
 Q = (4,)
@@ -24,13 +24,13 @@ M4 = (4, 4)
 # per-element formulas
 
 
-@element
+@element(how="call")
 def store44(out, i, m):
     for k in range(16):
         out[i, k // 4, k % 4] = m[k]
 
 
-@element
+@element(how="call")
 def left_matrix(q):
     """L (row-major 16-tuple) with L @ p = q ⊗ p."""
     w, x, y, z = q
@@ -42,7 +42,7 @@ def left_matrix(q):
     )  # fmt: skip
 
 
-@element
+@element(how="call")
 def right_matrix(q):
     """R (row-major 16-tuple) with R @ p = p ⊗ q."""
     w, x, y, z = q
@@ -270,14 +270,14 @@ def from_su2(m, out=None):
 # modified Rodrigues parameters and Gibbs vectors
 
 
-@inline
+@element
 def qmrp(q):
     """s·u / (|q| + |w|), s = −1 for w < 0: scipy's MRP of the shortest of ±q/|q|
     (|p| ≤ 1), for any scale of q (:func:`_elements.qscaled`); zero q gives nan."""
     return qmrp_raw(E.qscaled(q)[0])[0]
 
 
-@inline
+@element
 def qmrp_raw(q):
     """(:func:`qmrp` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`."""
     w = q[0]
@@ -287,7 +287,7 @@ def qmrp_raw(q):
     return (k * q[1], k * q[2], k * q[3]), n2
 
 
-@inline
+@element
 def mrp_quat(p):
     """((1 − |p|²), 2p) / (1 + |p|²): the unit quaternion of an MRP (w < 0 for |p| > 1)."""
     s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
@@ -297,7 +297,7 @@ def mrp_quat(p):
     return ((one - s) * k, t * p[0], t * p[1], t * p[2])
 
 
-@element
+@element(how="call")
 def qgibbs(q):
     """u / w = tan(θ/2)·axis; at w = 0 (a half turn) ±inf along the axis's
     non-zero components, signed as the canonical quaternion; zero q gives nan."""
@@ -317,7 +317,7 @@ def qgibbs(q):
     )
 
 
-@element
+@element(how="call")
 def gibbs_quat(g):
     """(1, g) / sqrt(1 + |g|²), for any scale of g; infinite components (a half
     turn) give (0, the unit direction of the infinite components)."""
@@ -336,7 +336,7 @@ def gibbs_quat(g):
     return E.qnormalize((one, g[0], g[1], g[2]))
 
 
-@inline
+@element
 def _as_mrp_plain(i, args):
     q, out = args
     p, n2 = qmrp_raw(E.load4(q, i))
@@ -345,7 +345,7 @@ def _as_mrp_plain(i, args):
 
 
 # on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
-_as_mrp = E.FarRows(_as_mrp_plain, E.redo(E.store3, qmrp, "as_mrp"), "as_mrp")
+_as_mrp = rowloop(_as_mrp_plain, far=E.redo(E.store3, qmrp, "as_mrp"))
 
 
 @rowloop

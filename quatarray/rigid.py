@@ -24,8 +24,7 @@ joins two poses: ``T0 · exp(s · log(T0⁻¹ T1))``, the shorter way round
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, like, prange, rowloop
-from ._trace import select, traced
+from ._jit import element, like, prange, rowloop, select
 from ._trig import half_arc
 from ._validate import (
     as_float,
@@ -43,21 +42,21 @@ V = (3,)
 # per-element math
 
 
-@traced
+@element
 def unit(q):
     """q / |q| (no scaling: moderate |q| only)."""
     n = np.sqrt(E.qdot(q, q))
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
 
 
-@inline
+@element
 def unit_any(q):
     """q / |q| for any non-zero scale of q (:func:`quatarray._elements.qscaled` first:
     exact powers of two, branch-free); zero gives nan."""
     return unit(E.qscaled(q)[0])
 
 
-@traced
+@element
 def matrix_sign(q):
     """±q with the sign scipy's ``from_matrix`` gives: the component of largest
     magnitude positive, ties going to x, then y, then z, then w (the first of
@@ -70,7 +69,7 @@ def matrix_sign(q):
     return select(c < like(w, 0.0), (-w, -x, -y, -z), (w, x, y, z))
 
 
-@traced
+@element
 def rotate_unit(a, v):
     """R(a) v for a unit quaternion a."""
     return E.qrotate_raw(a, v, like(a[0], 1.0))
@@ -81,7 +80,7 @@ def rotate_unit(a, v):
 SERIES_BELOW = 0.25
 
 
-@traced
+@element
 def log_rotation(a):
     """(φ, h, c, s) of a unit quaternion a: its rotation vector φ (angle 2h, h in
     [0, π/2]) and c = |w| = cos h, s = |u| = sin h. At a half turn (w = 0) the
@@ -98,7 +97,7 @@ def log_rotation(a):
     return E.vscale(v, f), h, w, s
 
 
-@inline
+@element
 def log_pose(a, x):
     """(φ, u): exponential coordinates of the pose (a, x), a a unit quaternion.
 
@@ -121,7 +120,7 @@ def log_pose(a, x):
     return phi, u
 
 
-@inline
+@element
 def exp_pose(phi, u):
     """(q, t): the pose of exponential coordinates (φ, u): q = exp(φ/2),
     t = V(φ) u, V = I + k₁ [φ]× + k₂ [φ]×², k₁ = (1 − cos θ)/θ² = ½ sinc²(θ/2),
@@ -152,7 +151,7 @@ def exp_pose(phi, u):
     return q, t
 
 
-@inline
+@element
 def power_pose(a, x, k):
     """(a, x) to the real power k (a unit): exp(k log(a, x)); k = 0 gives the identity."""
     if k == like(k, 0.0):
@@ -162,7 +161,7 @@ def power_pose(a, x, k):
     return exp_pose(E.vscale(phi, k), E.vscale(u, k))
 
 
-@inline
+@element
 def signed(q, sign):
     return matrix_sign(q) if sign else q
 

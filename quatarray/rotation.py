@@ -3,7 +3,7 @@
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, prange, prefer_no_gather, rowloop, specialise
+from ._jit import element, prange, prefer_no_gather, rowloop, second_pass, specialise
 from ._validate import as_float, elementwise
 
 
@@ -46,7 +46,7 @@ _rotate_new = rowloop(_rotate_rows)
 _rotate_into = rowloop(specialise(_rotate_rows, "_into", INTO_V=True))
 
 
-@inline
+@element
 def _rotate_scaled(i, args):
     q, v, out = args
     a = E.load4(q, i)
@@ -54,7 +54,7 @@ def _rotate_scaled(i, args):
         E.store3(out, i, E.qrotate(a, E.load3(v, i)))
 
 
-_rotate_again = E.second_pass(_rotate_scaled, "rotate")
+_rotate_again = second_pass(_rotate_scaled, "rotate")
 
 
 def _rotate(q, v, out):

@@ -56,7 +56,7 @@ import numpy as np
 
 from . import _cubic
 from . import _elements as E
-from ._jit import inline, ir_inline, kernel, like, prange, rowloop, specialise
+from ._jit import element, like, prange, rowloop, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
 from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
@@ -73,7 +73,7 @@ TILE = 64
 NSEG = 31  # floats per row of a spline's segment table: 4 quaternions, 3 arcs
 
 
-@kernel
+@rowloop(parallel=False)
 def sign_summary(q, rows, ends, negated, unit, dots):
     """What a blocked sign scan needs of one block of raw keys, seen as :func:`spline`
     sees them (normalised, then unflipped from the block's first row), without
@@ -119,7 +119,7 @@ def sign_summary(q, rows, ends, negated, unit, dots):
 # ---- spline: per-segment tables, segment search, batched evaluation ----
 
 
-@inline
+@element
 def put_arc(seg, n, c, p, q):
     """Table row n, columns c … c + 4: (θ, v) of the fixed arc from p to q (:func:`arc`)."""
     th, v, sgn, rare = arc_fast(p, q, like(p[0], 0.0))
@@ -154,7 +154,7 @@ def _segments(q, c_out, c_in, seg):
             put_arc(seg, n, 16 + 5 * k, E.loads(seg, c0, 4), E.loads(seg, c1, 4))
 
 
-@inline
+@element
 def next_run(times, new_t, j, hi, n):
     """(segment, end) of the run of samples j, j+1, ..., end−1 (< hi) in one segment.
 
@@ -189,7 +189,7 @@ def next_run(times, new_t, j, hi, n):
     return lo, e
 
 
-@inline
+@element
 def seg_keys(seg, n):
     """The four quaternions of a table row (starting at flat element n): q_n, its two
     controls, q_{n+1}. A fixed arc of the row is ``E.loads(seg, n + c, 5)``, (θ, v) at column c."""
@@ -237,12 +237,12 @@ def _eval(times, new_t, data, out):
         FLUSH(out, state, count)
 
 
-@ir_inline
+@rowloop(inline=True)
 def no_state(data):
     return 0
 
 
-@ir_inline
+@rowloop(inline=True)
 def no_flush(out, state, count):
     return None
 
@@ -252,7 +252,7 @@ def _eval_of(name, run, start=no_state, flush=no_flush, cap=-1):
     return rowloop(rows=1)(specialise(_eval, name, START=start, RUN=run, FLUSH=flush, CAP=cap))
 
 
-@inline
+@element
 def _segment(times, seg, sg):
     """(t0, h, n, x0): the start and length of segment sg, where its table row starts,
     and a zero of the output type (like() on an array inside the loop stops the vectoriser)."""
@@ -260,7 +260,7 @@ def _segment(times, seg, sg):
     return t0, times[sg + 1] - t0, NSEG * sg, like(seg, 0.0)
 
 
-@ir_inline
+@rowloop(inline=True)
 def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     p = E.loads(seg, n, 4)
@@ -271,7 +271,7 @@ def run_slerp(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@ir_inline
+@rowloop(inline=True)
 def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     p = E.loads(seg, n, 4)
@@ -282,7 +282,7 @@ def run_nlerp(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@ir_inline
+@rowloop(inline=True)
 def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     t0, h, n, x0 = _segment(times, seg, sg)
     q0, s0, s1, q1 = seg_keys(seg, n)
@@ -296,19 +296,19 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@inline
+@element
 def tile_q(tile, c, lane):
     return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane),
             E.load1(tile, (c + 2) * TILE + lane), E.load1(tile, (c + 3) * TILE + lane))
 
 
-@inline
+@element
 def tile_arc(tile, c, lane):
     return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane), E.load1(tile, (c + 2) * TILE + lane),
             E.load1(tile, (c + 3) * TILE + lane), E.load1(tile, (c + 4) * TILE + lane))
 
 
-@kernel
+@rowloop(parallel=False)
 def bezier_tile(out, state, count):
     """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
     SIMD over its lanes, into `res` column by column), then store them in their rows of
@@ -327,14 +327,14 @@ def bezier_tile(out, state, count):
             out[4 * rows[lane] + c] = res[c * TILE + lane]
 
 
-@ir_inline
+@rowloop(inline=True)
 def start_bezier(seg):
     """A block's tile: its samples' segment rows column by column, u, the results, the sample rows."""
     return (np.empty(NSEG * TILE, seg.dtype), np.empty(TILE, seg.dtype), np.empty(4 * TILE, seg.dtype),
             np.empty(TILE, np.int64))
 
 
-@ir_inline
+@rowloop(inline=True)
 def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
     """Samples j, j + 1, … wait in the tile until the run ends or the tile is full."""
     t0, h, n, x0 = _segment(times, seg, sg)
@@ -362,7 +362,7 @@ PIECES_MIN_KEYS = 4097
 _segments_1 = _eval_1 = None  # bound in each method's copy (_PIECES)
 
 
-@inline
+@element
 def seg_index(times, t):
     """The segment of time t: the largest n ≤ K − 2 with times[n] ≤ t (0 before times[0])."""
     lo = 0
@@ -399,7 +399,7 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
 # ---- the rates of the curves (order 1, 2) and the cubic spline
 
 
-@inline
+@element
 def _arc_rate(seg, n, c, p):
     """The constant body rate per unit u of the fixed arc at column c of a table row."""
     a = E.loads(seg, n + c, 5)
@@ -674,7 +674,7 @@ def unit_keys(parts, flip0=False):
 UNIT_BLOCK = 256  # rows of _unit_unflip's block: its normalised rows stay in L1
 
 
-@kernel
+@rowloop(parallel=False)
 def _unit_unflip(p, out, a, flip0):
     """Rows a … a + len(p) − 1 of `out`: the rows of `p` normalised (:func:`quatarray.normalize`),
     each negated when :func:`unflip` would negate it after the row before in `out`
@@ -797,7 +797,7 @@ _PIECES = {
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
 _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
-                                  ir_inline(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order)))
+                                  rowloop(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order), inline=True))
           for name, m in TABLED.items() for order in (1, 2)}
-_EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", inline(specialise(_run_cubic, f"_{order}", ORDER=order)))
+_EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", element(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}

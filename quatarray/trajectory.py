@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _elements as E
-from ._jit import inline, kernel, prange, rowloop
+from ._jit import element, prange, rowloop
 from .algebra import normalize
 
 RELATIONS = ("trans", "rot", "full")
@@ -143,7 +143,7 @@ def match_times(stamps_1, stamps_2, max_diff=0.01, offset_2=0.0):
     return np.flatnonzero(keep), best[keep]
 
 
-@kernel
+@rowloop(parallel=False)
 def _match_sorted(s1, s2, off, max_diff, i1, i2):
     # match_times for non-decreasing s2 (times s2 + off): per time of s1 the upper and lower
     # neighbours of a right bisection, found by galloping on from the previous one while s1
@@ -413,7 +413,7 @@ class Moments:
         )
 
 
-@kernel
+@rowloop(parallel=False)
 def _moments_kernel(x, y, ox, oy, mx, my, cyx):
     # two passes: the means, then the sums about them (writes mx, my, cyx (flat, 9); returns sxx),
     # of the points x - ox, y - oy
@@ -700,7 +700,7 @@ def _relation(relation):
 _CODES = {r: k for k, r in enumerate(RELATIONS)}
 
 
-@inline
+@element
 def _error(code, dx, dy, dz, qa_, qb):
     """The error of the SE(3) error E between rotations qa_, qb (E's rotation angle is their
     distance, as qa.distance) and the translation difference (dx, dy, dz) (‖t_E‖ is its norm),
@@ -724,7 +724,7 @@ def _ape_kernel(code, ref_pos, o, ref_q, est_pos, est_q, out):
                         e[2] - (ref_pos[i, 2] - o[2]), E.load4(est_q, i), E.load4(ref_q, i))
 
 
-@inline
+@element
 def _relative(pos, q, i, j):
     # p_i⁻¹ p_j: rotation q_i* q_j, translation R_i^T (x_j − x_i)
     qi = E.qconj(E.load4(q, i))
@@ -764,7 +764,7 @@ def ape(ref, est, relation="trans", origin=None):
     return out
 
 
-@kernel
+@rowloop(parallel=False)
 def _consecutive_by_distance(steps, delta):
     # evo's filter_pairs_by_path (consecutive): restart the running sum at each kept pose
     n = steps.shape[0] + 1
@@ -780,7 +780,7 @@ def _consecutive_by_distance(steps, delta):
     return ids[:k]
 
 
-@kernel
+@rowloop(parallel=False)
 def _all_pairs_by_distance(dist, delta, tol):
     # evo's filter_pairs_by_path (all pairs): for each i the j > i whose
     # dist[j] - dist[i] is nearest delta (the first on ties), kept within tol.

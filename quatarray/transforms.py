@@ -27,9 +27,8 @@ import math
 import numpy as np
 
 from . import _elements as E
-from ._jit import element, inline, like, prange, prefer_no_gather, rowloop
+from ._jit import element, like, prange, prefer_no_gather, rowloop, select
 from ._validate import as_float, check_core, elementwise, float_dtype, is_weak, result_dtype, where
-from ._trace import select, traced
 from ._mat33 import cofactor33, det33, lerp9, matmul, matvec, scale9, transpose
 from .conversions import from_matrix
 
@@ -40,7 +39,7 @@ _F32 = np.dtype(np.float32)
 # per-element helpers; 3×3 matrices are row-major 9-tuples (quatarray._mat33)
 
 
-@traced
+@element
 def _mat_inverse(m):
     """(M⁻¹, |det M| / (|r0| |r1| |r2|)) for rows r_k of M.
 
@@ -65,7 +64,7 @@ def _mat_inverse(m):
 # pass leaves those rows holding the input that `out` is, for the second to read.
 
 
-@inline
+@element
 def _apply_vqs_plain(i, args):
     v, q, s, p, out = args
     a = E.load4(q, i)
@@ -78,7 +77,7 @@ def _apply_vqs_plain(i, args):
     return f
 
 
-@inline
+@element
 def _apply_vqs_scaled(i, args):
     v, q, s, p, out = args
     a = E.load4(q, i)
@@ -87,7 +86,7 @@ def _apply_vqs_scaled(i, args):
         E.store3(out, i, E.vadd(E.qrotate(a, r), E.load3(v, i)))
 
 
-_apply_vqs = E.FarRows(_apply_vqs_plain, _apply_vqs_scaled, "apply_vqs")
+_apply_vqs = rowloop(_apply_vqs_plain, far=_apply_vqs_scaled)
 
 
 @rowloop
@@ -174,7 +173,7 @@ def _inverse_vqm(v, q, m, vo, qo, mo, ratio):
         ratio[i] = c
 
 
-@element
+@element(how="call")
 def _store_homogeneous(out, i, a, v):
     zero = like(v[0], 0.0)
     out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = a[0], a[1], a[2], v[0]

@@ -24,7 +24,7 @@ from .. import euler as _eul
 from .. import representations as _rep
 from .. import rotation as _rot
 from .. import symmetry as _sym
-from .._jit import prange, rowloop
+from .._jit import FarRows, prange, rowloop
 from .._validate import as_float, check_core, elementwise
 
 _F32 = np.dtype(np.float32)
@@ -106,7 +106,7 @@ def _map(kernel, a, cin, cout):
     if a.ndim == len(cin):  # one row: the serial loop, called directly
         out = np.empty((1,) + cout, a.dtype)
         one = a[None]
-        if type(kernel) is E.FarRows:
+        if type(kernel) is FarRows:
             if kernel.first.serial(one, out):
                 kernel.again(one, out)
         else:

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import _cubic
 from .. import splines as _sp
-from .._jit import kernel
+from .._jit import rowloop
 from .._validate import as_float, as_times, check_core, key_times, spline_order
 from .rotation import Rotation
 
@@ -66,7 +66,7 @@ def _scipy_signs(q):
     return sign
 
 
-@kernel
+@rowloop(parallel=False)
 def _signs(q, sign):
     """:func:`_scipy_signs` into `sign` (one pass: the dozen numpy calls it takes on
     arrays of steps cost more than scipy's whole construction at a few keys)."""
