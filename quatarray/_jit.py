@@ -37,38 +37,46 @@ QUATARRAY_PARALLEL_MIN_ROWS
     ``variant("serial")``) the calls of that thread or task run serial
     whatever their size; other threads keep the rule.
 
-Kernel layers
--------------
-``element``
-    Per-element math on scalars and tuples (one quaternion, one vector).
-    The default for element functions: compiled once as its own function
-    (an LLVM call from the loop that uses it), cached, and cheap to compile:
-    without the CPython and C wrappers (:data:`NO_WRAPPERS`), which only calls
-    from Python need (those run a wrapped twin, :class:`_Element`).
-``traced`` (:mod:`quatarray._trace`)
-    Straight-line per-element math (arithmetic, ``sqrt``, comparisons,
-    :func:`~quatarray._trace.select`, calls of other traced functions) as a
-    builtin of each caller: typed and lowered by running the Python function
-    on symbols, with no numba compile of its own, its instructions in the
-    caller's IR before LLVM optimises it (so the loop vectoriser sees them,
-    as with ``inline``). The cheapest layer to compile, and the one for
-    short formulas: the quaternion products, the branch-free trigonometry of
-    ``_trig``, slerp's arcs and the spline rates' rules.
-``inline``
-    Like ``element`` (compiled once per signature, cached) but marked
-    ``alwaysinline`` for LLVM (numba's ``forceinline``), so every caller gets
-    it inlined before LLVM's loop vectoriser runs. Use it for the per-row
-    math inside row loops that must vectorise where a traced function cannot
-    serve (it calls a compiled function, reads an array, or branches): a call
-    that LLVM does not inline stops the vectoriser. It gives the same SIMD code as
-    numba's IR-level ``inline="always"``, which re-runs numba's front end on
-    every callee at every call site, nested: that made the Bézier spline's
-    first call take over a minute to compile; with LLVM inlining it takes
-    seconds. Check the result (``inspect_asm``: packed ``ymm`` arithmetic).
-``rowloop``
-    A batched loop over the leading axis, written once with ``prange``;
-    it is compiled as a serial and as a parallel dispatcher and the call
-    picks one by the number of rows.
+The kernel vocabulary
+---------------------
+Compiled code is written in three ways, and this module holds the machinery
+behind them:
+
+:func:`element`
+    A per-element formula (scalars and tuples in, a tuple or scalar out; a
+    row's formula may read and write rows of arrays). How it is compiled
+    follows from its bytecode (:func:`quatarray._trace.untraceable`):
+    straight-line arithmetic is *traced*, a builtin of each caller with no
+    compile of its own (:mod:`quatarray._trace`: the cheapest to compile);
+    a formula that branches, loops, reads arrays or calls compiled functions
+    is compiled once per signature, without the CPython and C wrappers
+    (:data:`NO_WRAPPERS`; calls from Python run a wrapped twin), cached, and
+    marked ``alwaysinline`` for LLVM so that the loops that call it vectorise.
+    LLVM inlining gives the SIMD code of numba's IR-level ``inline="always"``,
+    which re-runs numba's front end on every callee at every call site, nested
+    (that once made the Bézier spline's first call take over a minute).
+    ``how="call"`` keeps a long formula an LLVM call; ``how="inline"`` compiles
+    a traceable one on its own.
+:func:`rowloop`
+    A loop: over the leading axis with ``prange``, compiled as a serial and a
+    parallel variant that the call picks by the number of rows
+    (:class:`RowLoop`); ``parallel=False`` for loops that do not pay on
+    threads and for scans and searches; ``far=`` for the formulas exact only
+    near unit scale (:class:`FarRows`: a second pass redoes the rare far
+    rows); ``inline=True`` for a shallow loop numba inlines into its one
+    caller. A row loop called from another kernel is its serial variant.
+a public wrapper
+    Plain Python in the subject module: validate (:mod:`quatarray._validate`),
+    allocate, call the loop.
+
+The same loop or formula for another method, order or output is a *variant*:
+:func:`specialise` copies it with some of its globals bound to other values
+(a constant such as the spline's ``KIND``, another function to call), each
+copy compiled and cached on its own; the rebound globals are named in capitals
+at the top of the module, with the variants built beside them.
+
+Helpers
+-------
 ``like(x, c)``
     The constant ``c`` in ``x``'s float type, so float32 kernels stay
     float32 (a bare ``2.0`` would promote them to float64).

@@ -350,3 +350,97 @@ def test_the_locator_is_installed_once_and_survives_reload_and_copy(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     r = subprocess.run([sys.executable, "-c", _RELOADED], env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and r.stdout.split() == ["ok"], r.stderr[-2000:]
+
+
+# ---- the kernel vocabulary: element, rowloop
+
+
+def _straight(a, b):
+    return _jit.fmuladd(a, b, _jit.like(a, 1.0)) * _jit.select(a < b, a, b)
+
+
+def _straight_plain(a, b):
+    return _jit.fmuladd(a, b, _jit.like(a, 1.0))
+
+
+def _branchy(a, b):
+    if a < b:
+        return a * b
+    return a - b
+
+
+def _reads_array(x, i):
+    return x[i] * 2.0
+
+
+def test_element_traces_straight_line_code_and_compiles_the_rest():
+    from quatarray import _trace
+
+    traced, branchy, reads = _jit.element(_straight), _jit.element(_branchy), _jit.element(_reads_array)
+    assert traced is _straight and _straight in _trace.TRACED  # a builtin of its callers
+    assert _jit.ELEMENTS[f"{__name__}._straight"] is None
+    assert "POP_JUMP" in _jit.ELEMENTS[f"{__name__}._branchy"] or "JUMP" in _jit.ELEMENTS[f"{__name__}._branchy"]
+    assert _jit.ELEMENTS[f"{__name__}._reads_array"] == "an index that is not a constant"
+    assert hasattr(branchy, "py_func") and hasattr(reads, "py_func")  # compiled
+
+    @_jit.rowloop(parallel=False)
+    def use(x, out):
+        for i in range(x.shape[0]):
+            out[i] = traced(x[i], 0.5) + branchy(x[i], 0.5) + reads(x, i)
+
+    x = np.linspace(-1, 1, 9)
+    out = np.empty_like(x)
+    use(x, out)
+    assert np.array_equal(out, [_straight(v, 0.5) + _branchy(v, 0.5) + 2 * v for v in x])
+    for dtype in (np.float32,):  # a traced element keeps float32 float32
+        y = x.astype(dtype)
+        o = np.empty_like(y)
+        use(y, o)
+        assert o.dtype == dtype
+
+
+def test_element_how_chooses_and_refuses_what_it_does_not_know():
+    compiled = _jit.element(how="inline")(_straight_plain)  # traceable, but compiled on its own
+    called = _jit.element(how="call")(_branchy)
+    assert hasattr(compiled, "py_func") and hasattr(called, "py_func")
+    assert compiled(0.25, 0.5) == _straight_plain(0.25, 0.5) and called(0.25, 0.5) == _branchy(0.25, 0.5)
+    with pytest.raises(ValueError, match="Expected `how` to be None, 'trace', 'inline' or 'call', got 'fast'"):
+        _jit.element(how="fast")(_straight)
+
+
+def test_no_element_of_the_package_lost_its_trace_to_a_forward_reference():
+    # the decorator reads an element's callees when it is defined: one defined below
+    # its caller leaves the caller compiled; every such caller must stay untraceable
+    # once the module is whole (else its callees belong above it)
+    import importlib
+    from quatarray import _trace
+
+    for mod in ("algebra", "conversions", "euler", "splines", "transforms", "rigid", "align", "kinematics",
+                "trajectory", "skeleton", "davenport", "symmetry", "interpolation", "classes.rotation"):
+        importlib.import_module(f"quatarray.{mod}")
+    late = {k: v for k, v in _jit.ELEMENTS.items() if v and "not defined yet" in v}
+    for name in late:
+        module, _, qual = name.rpartition(".")
+        fn = getattr(importlib.import_module(module), qual)
+        fn = getattr(fn, "py_func", fn)
+        assert _trace.untraceable(fn, also=(_jit.like, _jit.fmuladd)), f"{name} could be traced: define its callees above it"
+    assert sum(v is None for v in _jit.ELEMENTS.values()) > 50  # the quaternion products, trigonometry, slerp arcs, ...
+
+
+def test_a_row_loop_calls_another_as_its_serial_variant():
+    @_jit.rowloop
+    def double(x, out):
+        for i in _jit.prange(x.shape[0]):
+            out[i] = 2.0 * x[i]
+
+    @_jit.rowloop(parallel=False)
+    def twice_then_add(x, out):
+        double(x, out)
+        for i in range(x.shape[0]):
+            out[i] += 1.0
+
+    x = np.arange(5.0)
+    out = np.empty_like(x)
+    twice_then_add(x, out)
+    assert np.array_equal(out, 2 * x + 1)
+    assert twice_then_add.parallel is twice_then_add.serial  # parallel=False: the serial variant only
