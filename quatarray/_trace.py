@@ -297,6 +297,34 @@ def select(c, a, b):
     return Sym(ty, _NOW[-1][1].select(c.v, _value(a, ty), _value(b, ty)))
 
 
+# select in compiled code too (an element that is not traced may call it): typed and
+# lowered in place, one LLVM select per component, as while tracing
+@type_callable(select)
+def _type_select(context):
+    def typer(c, a, b):
+        c, a, b = (types.unliteral(x) for x in (c, a, b))
+        scalar = (types.Float, types.Integer, types.Boolean)
+        leaves = a.types if isinstance(a, types.BaseTuple) else (a,)
+        if isinstance(c, scalar) and a == b and all(isinstance(x, scalar) for x in leaves):
+            return a
+
+    return typer
+
+
+@lower_builtin(select, types.Any, types.Any, types.Any)
+def _lower_select(context, builder, sig, args):
+    cty, ty = sig.args[0], sig.return_type
+    c = args[0]
+    if not isinstance(cty, types.Boolean):  # a number's truth: c != 0 (nan is true)
+        zero = context.get_constant(cty, 0)
+        c = builder.fcmp_unordered("!=", c, zero) if isinstance(cty, types.Float) else builder.icmp_signed("!=", c, zero)
+    if isinstance(ty, types.BaseTuple):
+        items = [builder.select(c, builder.extract_value(args[1], k), builder.extract_value(args[2], k))
+                 for k in range(len(ty))]
+        return context.make_tuple(builder, ty, items)
+    return builder.select(c, args[1], args[2])
+
+
 # ---- typing and lowering of a traced function's calls
 
 

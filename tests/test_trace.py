@@ -178,3 +178,18 @@ def test_select_picks_component_by_component():
     assert float_bits(np.float32(1.0)) == 32
     assert float_bits(1.0) == float_bits(np.float64(1.0)) == 64
     assert math.isnan(select(True, math.nan, 0.0))
+
+
+def test_select_in_compiled_code_equals_traced_and_python():
+    import numba
+
+    @numba.njit(cache=False)
+    def pick(c, a, b, x):
+        for _ in range(1):  # a loop: numba compiles this, select included
+            r = select(c, a, b)
+        return r, select(x, 1.0, 2.0), select(x < 0.0, (1.0, 2.0), (3.0, 4.0))
+
+    for c, x in ((True, 0.0), (False, np.nan), (True, -1.0)):
+        assert pick(c, 1.5, 2.5, x) == (select(c, 1.5, 2.5), 2.0 if x == 0 else 1.0, select(x < 0.0, (1.0, 2.0), (3.0, 4.0)))
+    f32 = pick(True, np.float32(1.5), np.float32(2.5), 0.0)[0]
+    assert f32 == np.float32(1.5) and isinstance(f32, float)
