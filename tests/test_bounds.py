@@ -14,16 +14,16 @@ SCRIPT = textwrap.dedent("""
     import numpy as np
     import quatarray as qa
     from quatarray import _elements as E
-    from quatarray._jit import CACHE, CHECK_BOUNDS, kernel
+    from quatarray._jit import CACHE, CHECK_BOUNDS, rowloop
 
     assert CHECK_BOUNDS and not CACHE
 
-    @kernel
+    @rowloop(parallel=False)
     def one_row_too_many(q, out):
         for i in range(q.shape[0] + 1):
             E.store4(out, i, E.load4(q, i))
 
-    @kernel
+    @rowloop(parallel=False)
     def store_past(out):
         E.store3(out, out.shape[0], (1.0, 2.0, 3.0))
 
