@@ -62,7 +62,7 @@ def _samples(dtype, n=8, k=6):
 
     p, q = unit(n), unit(n)
     big = 1e200 if d == np.float64 else 1e30
-    far = p.copy()  # a row far from unit scale: the second pass of E.FarRows kernels
+    far = p.copy()  # a row far from unit scale: the second pass of the rowloop(far=...) kernels
     far[1] *= big
     w, x, y, z = p.T.astype(np.float64)
     m = np.array([

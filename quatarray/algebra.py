@@ -31,7 +31,7 @@ def _conjugate(q, out):
         E.store4(out, i, E.qconj(E.load4(q, i)))
 
 
-# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# The loops over |q|-dependent formulas (rowloop(far=...)) compute them on q as it is;
 # a second kernel redoes the rare rows outside the range where that is exact,
 # on the scaled q (E.qscaled), only when there are some.
 

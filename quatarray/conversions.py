@@ -9,7 +9,7 @@ Euler angles live in :mod:`quatarray.euler`; the scalar-last layout, scipy
 Rodrigues parameters and Gibbs vectors in :mod:`quatarray.representations`.
 
 The element functions of the rotation-vector and axis-angle kernels are
-inlined by LLVM (``_jit.inline``) and use the branch-free
+inlined by LLVM (``_jit.element``) and use the branch-free
 polynomial sine, cosine and arctangent of :mod:`quatarray._trig`, so their
 row loops compile to SIMD code (about 3× faster than with libm calls).
 """
@@ -210,7 +210,7 @@ def rotvec_quat(v):
 # batched loops
 
 
-# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# The loops over |q|-dependent formulas (rowloop(far=...)) compute them on q as it is;
 # a second kernel redoes the rare rows outside the range where that is exact,
 # on the scaled q (E.qscaled), only when there are some.
 

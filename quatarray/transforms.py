@@ -58,7 +58,7 @@ def _mat_inverse(m):
 # batched loops
 
 
-# The loops over |q|-dependent formulas (E.FarRows) compute them on q as it is;
+# The loops over |q|-dependent formulas (rowloop(far=...)) compute them on q as it is;
 # a second kernel redoes the rare rows outside the range where that is exact,
 # on the scaled q (E.qscaled), only when there are some. `out` may be `p` or `v`: the first
 # pass leaves those rows holding the input that `out` is, for the second to read.
