@@ -18,7 +18,7 @@ _MODULES = {
         "multiply", "conjugate", "inverse", "norm", "normalize", "dot", "exp", "log",
         "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean", "approx_equal",
     ],
-    "rotation": ["rotate"],
+    "vectors": ["rotate"],  # not `rotate.py`: importing it would shadow the function
     "conversions": [
         "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle", "from_axis_angle",
     ],

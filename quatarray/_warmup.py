@@ -126,7 +126,7 @@ def _each(f, *args, out=False, **kw):
 
 
 def _rotate_into_v(f, q, v):
-    """rotate(q, v, out=v) for one q of shape (1, 4): rotation's own loop for `out` = v
+    """rotate(q, v, out=v) for one q of shape (1, 4): rotate's own loop for `out` = v
     (not a RowLoop.into copy) meets q's broadcast rows as another type than a q of (4,)."""
     b = v.copy()
     f(q, b, out=b)

@@ -346,7 +346,7 @@ def few_axes_angles(q, order):
     >>> np.degrees(few_axes_angles(q, "YX")).round(9)
     array([[ 30., -40.]])
     """
-    from .rotation import rotate
+    from .vectors import rotate
 
     q = normalize(np.asarray(q, dtype=np.float64).reshape(-1, 4))
     iA = AXES.index(order[0])

@@ -1,4 +1,7 @@
-"""Rotating vectors by quaternions."""
+"""Rotating vectors by quaternions: :func:`rotate`.
+
+The module was called ``quatarray.rotation`` before; that import path still
+works (it is this module object)."""
 
 import numpy as np
 

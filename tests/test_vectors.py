@@ -1,4 +1,4 @@
-"""quatarray.rotation.rotate against scipy's Rotation.apply."""
+"""quatarray.vectors.rotate against scipy's Rotation.apply."""
 
 import numpy as np
 import pytest
