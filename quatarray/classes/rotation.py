@@ -22,8 +22,8 @@ from .. import conversions as _conv
 from .. import davenport as _dav
 from .. import euler as _eul
 from .. import representations as _rep
-from .. import rotation as _rot
 from .. import symmetry as _sym
+from .. import vectors as _vec
 from .._jit import FarRows, prange, rowloop
 from .._validate import as_float, check_core, elementwise
 
@@ -810,7 +810,7 @@ class Rotation:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         if q.ndim == 1 and v.ndim == 1 and v.dtype is q.dtype:  # the lean path
             out = np.empty(3, q.dtype)
-            (_rotate_inv if inverse else _rot._rotate_one).serial(*((q[None], v[None]) if inverse else (v[None], q[None])), out[None])
+            (_rotate_inv if inverse else _vec._rotate_one).serial(*((q[None], v[None]) if inverse else (v[None], q[None])), out[None])
             return out
         ql, vl = q.shape[:-1], v.shape[:-1]
         if ql == vl and v.dtype is q.dtype:
@@ -820,7 +820,7 @@ class Rotation:
                 if inverse:
                     _rotate_inv(qf, vf, of)
                 else:
-                    _rot._rotate(qf, vf, of)
+                    _vec._rotate(qf, vf, of)
             return out
         if ql != vl:
             try:
@@ -831,7 +831,7 @@ class Rotation:
                 raise ValueError(f"Cannot broadcast {n} rotations to {m} vectors.") from None
         if inverse:
             return elementwise(_rotate_inv, [(q, "rotations", _Q), (v, "vectors", (3,))], [(3,)])
-        return _rot.rotate(q, v)
+        return _vec.rotate(q, v)
 
     def __mul__(self, other):
         """Composition ``self * other``: `other` applied first (leading dimensions broadcast).
