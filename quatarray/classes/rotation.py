@@ -663,7 +663,7 @@ class Rotation:
         array([0.        , 0.        , 3.14159265])
         """
         p = _shape_check(_floats(mrp, "mrp"), "mrp", (3,), "(..., 3)")
-        q = _map(_rep._from_mrp, p, (3,), _Q)
+        q = _map(_conv._from_mrp, p, (3,), _Q)
         return Rotation._from_house(q, q.ndim == 1)
 
     def as_mrp(self):
@@ -675,7 +675,7 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 3.141592653589793]).as_mrp().round(12) + 0.0
         array([0., 0., 1.])
         """
-        return _map(_rep._as_mrp, self._q, _Q, (3,))
+        return _map(_conv._as_mrp, self._q, _Q, (3,))
 
     @staticmethod
     def from_euler(seq, angles, degrees=False):
