@@ -23,7 +23,7 @@ _MODULES = {
         "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle", "from_axis_angle",
         "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
     ],
-    "representations": [
+    "layouts": [
         "as_xyzw", "from_xyzw", "to_scipy", "from_scipy", "as_left_matrix", "as_right_matrix",
         "as_su2", "from_su2",
     ],

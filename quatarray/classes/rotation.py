@@ -21,7 +21,7 @@ from .. import align as _align
 from .. import conversions as _conv
 from .. import davenport as _dav
 from .. import euler as _eul
-from .. import representations as _rep
+from .. import layouts as _lay
 from .. import symmetry as _sym
 from .. import vectors as _vec
 from .._jit import FarRows, prange, rowloop
@@ -273,7 +273,7 @@ class Rotation:
         elif scalar_first:
             q = a.copy() if copy else a
         else:
-            q = _rep.from_xyzw(a)
+            q = _lay.from_xyzw(a)
         self._q = q
         self._single = q.ndim == 1
 
@@ -583,7 +583,7 @@ class Rotation:
         return out
 
     # ------------------------------------------------------------------
-    # other representations
+    # other parameterisations
 
     @staticmethod
     def from_matrix(matrix, *, assume_valid=False):

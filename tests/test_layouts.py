@@ -1,4 +1,4 @@
-"""quatarray.representations against scipy's Rotation and independent formulas."""
+"""quatarray.layouts against scipy's Rotation and independent formulas."""
 
 import numpy as np
 import pytest
