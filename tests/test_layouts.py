@@ -88,3 +88,27 @@ def test_from_su2_byte_order_ragged_and_masked(rng):
         qa.from_su2([[[1, 0], [0, 1]], [[1, 0]]])
     with pytest.raises(TypeError, match="`m`.*masked"):
         qa.from_su2(np.ma.masked_array(u))
+
+
+def test_old_import_path():
+    # quatarray.representations held the layouts and MRP and Gibbs vectors: its names still import,
+    # the same objects as in quatarray.layouts and (MRP, Gibbs) quatarray.conversions
+    import quatarray.conversions as C
+    import quatarray.layouts as L
+    import quatarray.representations as old
+    from quatarray.representations import (
+        as_gibbs, as_left_matrix, as_mrp, as_right_matrix, as_su2, as_xyzw,
+        from_gibbs, from_mrp, from_scipy, from_su2, from_xyzw, to_scipy,
+    )  # fmt: skip
+
+    assert (as_xyzw, from_xyzw, to_scipy, from_scipy, as_left_matrix, as_right_matrix, as_su2, from_su2) == (
+        L.as_xyzw, L.from_xyzw, L.to_scipy, L.from_scipy, L.as_left_matrix, L.as_right_matrix, L.as_su2, L.from_su2)
+    assert (as_mrp, from_mrp, as_gibbs, from_gibbs) == (C.as_mrp, C.from_mrp, C.as_gibbs, C.from_gibbs)
+    assert as_mrp is qa.as_mrp and as_xyzw is qa.as_xyzw
+    layouts = {name for name, mod in qa._WHERE.items() if mod == "layouts"}
+    assert set(old.__all__) == layouts | {"as_mrp", "from_mrp", "as_gibbs", "from_gibbs"}
+    # the old module's other names: layouts' own, and the moved MRP and Gibbs code
+    assert old.left_matrix is L.left_matrix and old._as_su2 is L._as_su2
+    assert old.qmrp is C.qmrp and old.gibbs_quat is C.gibbs_quat and old._from_mrp is C._from_mrp
+    with pytest.raises(AttributeError, match="representations.*as_matrix"):
+        old.as_matrix  # noqa: B018 - never a name of the old module
