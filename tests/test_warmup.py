@@ -154,7 +154,8 @@ def test_table_covers_every_public_entry_point():
     # the walk reaches what the issue found missing: trajectory, Clip.world, the one-pass resampling
     reached = {c[0] for calls in walk["calls"].values() for c in calls}
     for kernel in ("trajectory._match_sorted", "trajectory._moments_kernel", "trajectory._ape_kernel",
-                   "trajectory._rpe_kernel", "skeleton._world", "_lanes._lane_spline_bezier", "_lanes._gather_unit"):
+                   "trajectory._rpe_kernel", "skeleton._world",
+                   "_spline_lanes._lane_spline_bezier", "_spline_lanes._gather_unit"):
         assert f"quatarray.{kernel}" in reached
 
 
