@@ -14,9 +14,9 @@ import pathlib
 if os.environ.get("PYTEST_XDIST_TESTRUNUID") and not os.environ.get("QUATARRAY_CACHE_LOCK"):
     os.environ["QUATARRAY_CACHE_LOCK"] = str(pathlib.Path(__file__).resolve().parent / ".quatarray-tests.lock")
 
-# the app's old module paths (quatarray/cli.py & co.) only alias quatarray.app's modules,
-# whose doctests run there
-collect_ignore = [f"quatarray/{m}.py" for m in ("cli", "demo", "bench", "plot", "evaluate")]
+# the old module paths that only alias another module (quatarray/cli.py & co. quatarray.app's,
+# quatarray/rotation.py quatarray.vectors), whose doctests run there
+collect_ignore = [f"quatarray/{m}.py" for m in ("cli", "demo", "bench", "plot", "evaluate", "rotation")]
 import pytest  # noqa: E402
 
 

@@ -7,9 +7,9 @@
   summary (problems/s, printed as Mquat/s); its "ratio" is of raw times, so
   for this group multiply it by 100.
 - ``align_vectors`` on one problem of 10⁶ pairs; target ≥ 2× scipy.
-- ``as_mrp`` (target ≥ 3×) and ``from_mrp`` (≥ 10×) at N = 2·10⁶; for scipy
-  the ``Rotation`` of ``as_mrp`` is built outside the timing, ``from_mrp``
-  times the construction only.
+
+(``as_mrp`` and ``from_mrp`` are timed with the other conversions, in
+``benchmarks/test_conversions.py``.)
 
 Run: ``pytest benchmarks/test_align.py --benchmark-only``.
 """
@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import arrays, run
+from conftest import run
 
 import quatarray as qa
 
@@ -68,25 +68,3 @@ def test_align_one_large(benchmark, lib):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run(benchmark, fn, len(a))
-
-
-@pytest.mark.benchmark(group="as_mrp N=2000000")
-@pytest.mark.parametrize("lib", LIBS)
-def test_as_mrp(benchmark, lib):
-    q = arrays(2_000_000, np.float32 if lib.endswith("f32") else np.float64)["q"]
-    if lib.startswith("quatarray"):
-        fn = lambda: qa.as_mrp(q)  # noqa: E731
-    else:
-        fn = Rotation.from_quat(q, scalar_first=True).as_mrp
-    run(benchmark, fn, len(q))
-
-
-@pytest.mark.benchmark(group="from_mrp N=2000000")
-@pytest.mark.parametrize("lib", LIBS)
-def test_from_mrp(benchmark, lib):
-    p = qa.as_mrp(arrays(2_000_000)["q"]).astype(np.float32 if lib.endswith("f32") else np.float64)
-    if lib.startswith("quatarray"):
-        fn = lambda: qa.from_mrp(p)  # noqa: E731
-    else:
-        fn = lambda: Rotation.from_mrp(p)  # noqa: E731
-    run(benchmark, fn, len(p))

@@ -12,7 +12,7 @@ Run: ``pytest benchmarks/test_conversions.py --benchmark-only`` (add
 ``-k 2000000`` for the target size only). The targets (issue 2), float64 at
 N = 2·10⁶, versus scipy: as_matrix ≥ 3×, from_matrix ≥ 5× (and with
 ``assume_valid=True`` ≥ 3× scipy's ``assume_valid=True``), as_rotvec ≥ 5×,
-from_rotvec ≥ 2×.
+from_rotvec ≥ 2×; as_mrp ≥ 3× and from_mrp ≥ 10× (at N = 2·10⁶ only).
 
 numpy-quaternion's and quaternionic's ``from_rotation_matrix`` with their
 default ``nonorthogonal=True`` run a Python loop of eigen-decompositions
@@ -210,7 +210,33 @@ def test_from_axis_angle(benchmark, lib, n):
 
 
 # --------------------------------------------------------------------------
-# layouts, scipy interop, matrix representations
+# modified Rodrigues parameters
+
+
+@pytest.mark.benchmark(group="as_mrp N=2000000")
+@pytest.mark.parametrize("lib", ["quatarray", "quatarray-f32", "scipy"])
+def test_as_mrp(benchmark, lib):
+    q = arrays(2_000_000, np.float32 if lib.endswith("f32") else np.float64)["q"]
+    if lib.startswith("quatarray"):
+        fn = lambda: qa.as_mrp(q)  # noqa: E731
+    else:
+        fn = Rotation.from_quat(q, scalar_first=True).as_mrp
+    run(benchmark, fn, len(q))
+
+
+@pytest.mark.benchmark(group="from_mrp N=2000000")
+@pytest.mark.parametrize("lib", ["quatarray", "quatarray-f32", "scipy"])
+def test_from_mrp(benchmark, lib):
+    p = qa.as_mrp(arrays(2_000_000)["q"]).astype(np.float32 if lib.endswith("f32") else np.float64)
+    if lib.startswith("quatarray"):
+        fn = lambda: qa.from_mrp(p)  # noqa: E731
+    else:
+        fn = lambda: Rotation.from_mrp(p)  # noqa: E731
+    run(benchmark, fn, len(p))
+
+
+# --------------------------------------------------------------------------
+# layouts (quatarray.layouts): xyzw, scipy objects, the 4×4 and SU(2) matrices
 
 
 @pytest.mark.parametrize("n", SIZES, ids=lambda n: f"N={n}")

@@ -18,13 +18,14 @@ _MODULES = {
         "multiply", "conjugate", "inverse", "norm", "normalize", "dot", "exp", "log",
         "power", "cumprod", "identity", "random", "canonical", "angle", "distance", "mean", "approx_equal",
     ],
-    "rotation": ["rotate"],
+    "vectors": ["rotate"],  # not `rotate.py`: importing it would shadow the function
     "conversions": [
         "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_axis_angle", "from_axis_angle",
+        "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
     ],
-    "representations": [
+    "layouts": [
         "as_xyzw", "from_xyzw", "to_scipy", "from_scipy", "as_left_matrix", "as_right_matrix",
-        "as_su2", "from_su2", "as_mrp", "from_mrp", "as_gibbs", "from_gibbs",
+        "as_su2", "from_su2",
     ],
     "euler": ["as_euler", "from_euler"],
     "davenport": ["as_davenport", "from_davenport"],

@@ -126,7 +126,7 @@ def _each(f, *args, out=False, **kw):
 
 
 def _rotate_into_v(f, q, v):
-    """rotate(q, v, out=v) for one q of shape (1, 4): rotation's own loop for `out` = v
+    """rotate(q, v, out=v) for one q of shape (1, 4): rotate's own loop for `out` = v
     (not a RowLoop.into copy) meets q's broadcast rows as another type than a q of (4,)."""
     b = v.copy()
     f(q, b, out=b)
@@ -202,10 +202,10 @@ def _clip(qa, s):
 
 def _clip_resample(method):
     """Clip.resample by `method`: joint by joint (a small clip) and in one pass over
-    the joints (``quatarray._lanes``, which Clip.resample takes from
+    the joints (``quatarray._spline_lanes``, which Clip.resample takes from
     ``LANES_MIN_SAMPLES`` joint-samples on), at a rate and at new times."""
     def run(qa, s):
-        from ._lanes import resample_streams
+        from ._spline_lanes import resample_streams
 
         clip = _clip(qa, s)
         clip.resample(rate=3.0, method=method)

@@ -1,12 +1,17 @@
-"""Conversions between quaternions (w, x, y, z) and rotation matrices,
-rotation vectors and axis–angle pairs.
+"""Conversions between quaternions (w, x, y, z) and the other
+parameterisations of a rotation: rotation matrices, rotation vectors,
+axis–angle pairs, modified Rodrigues parameters (MRP) and Gibbs vectors
+(scipy's ``as_*``/``from_*`` of a rotation).
 
-Every conversion from a quaternion accepts any non-zero scale (the rotation
-of q/|q| is meant); a zero quaternion gives nan. Leading dimensions
-broadcast like numpy; float32 stays float32 and float64 stays float64.
-Euler angles live in :mod:`quatarray.euler`; the scalar-last layout, scipy
-``Rotation`` objects, the 4×4 multiplication matrices, SU(2), modified
-Rodrigues parameters and Gibbs vectors in :mod:`quatarray.representations`.
+The rule between this module and :mod:`quatarray.layouts`: a *conversion*
+goes to another parameterisation of the rotation, so every conversion from
+a quaternion accepts any non-zero scale (the rotation of q/|q| is meant) and
+a zero quaternion gives nan; a *layout* (scalar-last xyzw, scipy
+``Rotation`` objects, the 4×4 multiplication matrices, SU(2)) holds the same
+four quaternion numbers arranged otherwise. Euler and Davenport angles have
+modules of their own (:mod:`quatarray.euler`, :mod:`quatarray.davenport`).
+Leading dimensions broadcast like numpy; float32 stays float32 and float64
+stays float64.
 
 The element functions of the rotation-vector and axis-angle kernels are
 inlined by LLVM (``_jit.element``) and use the branch-free
@@ -627,3 +632,215 @@ def from_axis_angle(axis, angle, degrees=False, out=None):
             f"Expected `axis` to be non-zero vectors; {where(bad, res.shape[:-1])} is (0, 0, 0)."
         )
     return res
+
+
+# --------------------------------------------------------------------------
+# modified Rodrigues parameters and Gibbs vectors
+
+
+@element
+def qmrp(q):
+    """s·u / (|q| + |w|), s = −1 for w < 0: scipy's MRP of the shortest of ±q/|q|
+    (|p| ≤ 1), for any scale of q (:func:`_elements.qscaled`); zero q gives nan."""
+    return qmrp_raw(E.qscaled(q)[0])[0]
+
+
+@element
+def qmrp_raw(q):
+    """(:func:`qmrp` on q as it is, |q|²): no scaling, see :func:`_elements.far_scale`."""
+    w = q[0]
+    n2 = E.qdot(q, q)
+    k = like(w, 1.0) / (np.sqrt(n2) + abs(w))
+    k = -k if w < like(w, 0.0) else k
+    return (k * q[1], k * q[2], k * q[3]), n2
+
+
+@element
+def mrp_quat(p):
+    """((1 − |p|²), 2p) / (1 + |p|²): the unit quaternion of an MRP (w < 0 for |p| > 1)."""
+    s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+    one = like(s, 1.0)
+    k = one / (one + s)
+    t = k + k
+    return ((one - s) * k, t * p[0], t * p[1], t * p[2])
+
+
+@element(how="call")
+def qgibbs(q):
+    """u / w = tan(θ/2)·axis; at w = 0 (a half turn) ±inf along the axis's
+    non-zero components, signed as the canonical quaternion; zero q gives nan."""
+    w, x, y, z = q
+    zero = like(w, 0.0)
+    if w != zero:
+        return (x / w, y / w, z / w)
+    if (x == zero) & (y == zero) & (z == zero):
+        nan = like(w, np.nan)
+        return (nan, nan, nan)
+    inf = like(w, np.inf)
+    sg = -like(w, 1.0) if E.canonical_flip(q) else like(w, 1.0)
+    return (
+        zero if x == zero else sg * np.copysign(inf, x),
+        zero if y == zero else sg * np.copysign(inf, y),
+        zero if z == zero else sg * np.copysign(inf, z),
+    )
+
+
+@element(how="call")
+def gibbs_quat(g):
+    """(1, g) / sqrt(1 + |g|²), for any scale of g; infinite components (a half
+    turn) give (0, the unit direction of the infinite components)."""
+    one = like(g[0], 1.0)
+    zero = like(g[0], 0.0)
+    if np.isinf(g[0]) | np.isinf(g[1]) | np.isinf(g[2]):
+        if np.isnan(g[0]) | np.isnan(g[1]) | np.isnan(g[2]):
+            nan = like(g[0], np.nan)
+            return (nan, nan, nan, nan)
+        return E.qnormalize((
+            zero,
+            np.copysign(one, g[0]) if np.isinf(g[0]) else zero,
+            np.copysign(one, g[1]) if np.isinf(g[1]) else zero,
+            np.copysign(one, g[2]) if np.isinf(g[2]) else zero,
+        ))  # fmt: skip
+    return E.qnormalize((one, g[0], g[1], g[2]))
+
+
+@element
+def _as_mrp_plain(i, args):
+    q, out = args
+    p, n2 = qmrp_raw(E.load4(q, i))
+    E.store3(out, i, p)
+    return E.far_scale(n2)
+
+
+# on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
+_as_mrp = rowloop(_as_mrp_plain, far=E.redo(E.store3, qmrp, "as_mrp"))
+
+
+@rowloop
+def _from_mrp(p, out):
+    for i in prange(p.shape[0]):
+        E.store4(out, i, mrp_quat(E.load3(p, i)))
+
+
+@rowloop
+def _as_gibbs(q, out):
+    for i in prange(q.shape[0]):
+        E.store3(out, i, qgibbs(E.load4(q, i)))
+
+
+@rowloop
+def _from_gibbs(g, out):
+    for i in prange(g.shape[0]):
+        E.store4(out, i, gibbs_quat(E.load3(g, i)))
+
+
+def as_mrp(q, out=None):
+    """Modified Rodrigues parameters tan(θ/4)·axis, as scipy's ``Rotation.as_mrp``.
+
+    The shortest of the two MRPs of each rotation (θ ≤ π, so |p| ≤ 1): the
+    sign of `q` is chosen with w ≥ 0 first. Any non-zero scale of `q`; a zero
+    quaternion gives nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    out : ndarray, optional
+        Result array of shape ``(..., 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_mrp(qa.from_rotvec([0, 0, np.pi])), 12)  # half turn: |p| = 1
+    array([0., 0., 1.])
+    >>> np.round(qa.as_mrp([0, 0, 0, -2]), 12) + 0.0  # any scale, either sign
+    array([ 0.,  0., -1.])
+    """
+    return elementwise(_as_mrp, [(q, "q", Q)], [V], out)
+
+
+def from_mrp(p, out=None):
+    """Unit quaternions of modified Rodrigues parameters, as scipy's ``Rotation.from_mrp``.
+
+    q = ((1 − |p|²), 2p) / (1 + |p|²); |p| > 1 (the longer of the two MRPs of
+    a rotation) gives w < 0, as in scipy (the same rotation).
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> qa.from_mrp([0, 0, 1])  # a half turn about z
+    array([0., 0., 0., 1.])
+    >>> np.allclose(qa.as_mrp(qa.from_mrp([0.1, -0.2, 0.3])), [0.1, -0.2, 0.3])
+    True
+    """
+    return elementwise(_from_mrp, [(p, "p", V)], [Q], out)
+
+
+def as_gibbs(q, out=None):
+    """Gibbs (Rodrigues) vectors g = u/w = tan(θ/2)·axis.
+
+    The same for q and −q and any non-zero scale. A half turn (w = 0) gives
+    inf along the axis (signed as the canonical quaternion, 0 for zero
+    components of the axis); a zero quaternion gives nan.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    out : ndarray, optional
+        Result array of shape ``(..., 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_gibbs(qa.from_rotvec([0, np.pi / 2, 0])), 12)  # tan(45°) = 1
+    array([0., 1., 0.])
+    >>> qa.as_gibbs([0, 0, -1, 0])
+    array([ 0., inf,  0.])
+    """
+    return elementwise(_as_gibbs, [(q, "q", Q)], [V], out)
+
+
+def from_gibbs(g, out=None):
+    """Unit quaternions (1, g)/sqrt(1 + |g|²) of Gibbs vectors, so w ≥ 0.
+
+    Any finite scale of g; infinite components give the half turn (w = 0)
+    about the direction of the infinite components (the inverse of
+    :func:`as_gibbs` at a half turn about an axis with ≤ 1 non-zero
+    component, or with all its components infinite).
+
+    Parameters
+    ----------
+    g : array_like, shape (..., 3)
+    out : ndarray, optional
+        Result array of shape ``(..., 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> import numpy as np, quatarray as qa
+    >>> np.round(qa.as_rotvec(qa.from_gibbs([0, 0, 1])), 12)  # tan(θ/2) = 1: θ = 90°
+    array([0.        , 0.        , 1.57079633])
+    >>> qa.from_gibbs([np.inf, 0, 0])
+    array([0., 1., 0., 0.])
+    """
+    return elementwise(_from_gibbs, [(g, "g", V)], [Q], out)

@@ -16,13 +16,13 @@ import numpy as np
 
 from . import _elements as E
 from ._jit import prange, rowloop
-from ._lanes import resample_each, resample_streams
+from ._spline_lanes import resample_each, resample_streams
 from ._validate import as_times, first_not_increasing, key_times, not_increasing
 from .algebra import multiply, normalize
 from .splines import check_method, plan_times
 
 AXES = "XYZ"
-# Clip.resample runs every joint in one pass (quatarray._lanes) from this many output
+# Clip.resample runs every joint in one pass (quatarray._spline_lanes) from this many output
 # joint-samples on; below, joint by joint through the engine's own kernels (the same
 # bits), so that a small clip does not wait for the one-pass kernels to compile (about
 # 3 s of a first call)
@@ -346,7 +346,7 @@ def few_axes_angles(q, order):
     >>> np.degrees(few_axes_angles(q, "YX")).round(9)
     array([[ 30., -40.]])
     """
-    from .rotation import rotate
+    from .vectors import rotate
 
     q = normalize(np.asarray(q, dtype=np.float64).reshape(-1, 4))
     iA = AXES.index(order[0])

@@ -1,6 +1,6 @@
 """quatarray.conversions against scipy's Rotation and independent formulas
 (round trips and the shape, dtype and input rules include the functions of
-quatarray.representations)."""
+quatarray.layouts)."""
 
 import numpy as np
 import pytest
@@ -413,3 +413,81 @@ def test_huge_angles_give_unit_quaternions(rng, dtype):
             want = Rotation.from_rotvec(axis * ang[:, None]).as_quat(scalar_first=True)
             assert np.allclose(qa.distance(q, want), 0, atol=1e-8)
     assert np.isnan(qa.from_rotvec([np.inf, 0, 0])).all()
+
+
+# ---------------------------------------------------------------- modified Rodrigues parameters and Gibbs vectors
+
+
+def test_mrp_vs_scipy(rng):
+    from scipy.spatial.transform import Rotation
+
+    q = qa.random(1000, rng=rng) * rng.uniform(0.1, 10, (1000, 1))  # any scale, either sign
+    q[:3] = [[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0]]  # half turns, identity
+    p = qa.as_mrp(q)
+    np.testing.assert_allclose(p, Rotation.from_quat(q, scalar_first=True).as_mrp(), atol=1e-15, rtol=1e-13)
+    assert np.all(np.linalg.norm(p, axis=-1) <= 1 + 1e-15)
+    pp = rng.standard_normal((1000, 3)) * 2  # |p| > 1 too
+    np.testing.assert_allclose(qa.from_mrp(pp), Rotation.from_mrp(pp).as_quat(scalar_first=True), atol=1e-15)
+    assert np.all(qa.distance(qa.from_mrp(p), q) < 1e-7)  # round trip
+    np.testing.assert_allclose(qa.as_mrp(qa.from_mrp(p)), p, atol=1e-15)
+    assert np.isnan(qa.as_mrp([0, 0, 0, 0])).all()
+    np.testing.assert_allclose(qa.as_mrp([1e-300, 0, 0, 2e-300]), qa.as_mrp([1, 0, 0, 2]))
+
+
+def test_gibbs(rng):
+    q = qa.random(1000, rng=rng)
+    g = qa.as_gibbs(q)
+    axis, ang = qa.as_axis_angle(q)
+    np.testing.assert_allclose(g, np.tan(ang / 2)[:, None] * axis, rtol=1e-9)
+    np.testing.assert_allclose(qa.as_gibbs(-3 * q), g, rtol=1e-15)
+    assert np.all(qa.distance(qa.from_gibbs(g), q) < 1e-7)
+    assert np.all(qa.from_gibbs(g)[:, 0] > 0)
+    # half turns: inf along the axis; and back
+    np.testing.assert_array_equal(qa.as_gibbs([[0, 0, -1, 0], [0, 1, 1, 0], [0, 0, 0, 1]]),
+                                  [[0, np.inf, 0], [np.inf, np.inf, 0], [0, 0, np.inf]])
+    np.testing.assert_allclose(qa.from_gibbs([[0, -np.inf, 0], [np.inf, np.inf, 0]]),
+                               [[0, 0, -1, 0], [0, 2**-0.5, 2**-0.5, 0]])
+    assert np.isnan(qa.as_gibbs([0, 0, 0, 0])).all()
+    assert np.isnan(qa.from_gibbs([np.inf, np.nan, 0])).all()
+    np.testing.assert_allclose(qa.from_gibbs([1e300, 0, 0]), [0, 1, 0, 0], atol=1e-300)
+
+
+@pytest.mark.parametrize("fn, core", [("as_mrp", 4), ("from_mrp", 3), ("as_gibbs", 4), ("from_gibbs", 3)])
+def test_mrp_gibbs_dtype_out_broadcast(rng, fn, core):
+    f = getattr(qa, fn)
+    x = qa.random((5, 2), rng=rng)[..., :core].copy()
+    res = f(x)
+    r32 = f(x.astype(np.float32))
+    assert r32.dtype == np.float32 and res.dtype == np.float64
+    np.testing.assert_allclose(r32, res, rtol=1e-5, atol=1e-6)
+    out = np.empty_like(res)
+    assert f(x, out=out) is out
+    np.testing.assert_array_equal(out, res)
+    np.testing.assert_array_equal(f(x[:, ::-1][:, ::-1]), res)  # strided view
+    with pytest.raises(ValueError, match=rf"Expected `\w` to have shape \(\.\.\., {core}\)"):
+        f(np.ones((2, 5)))
+    with pytest.raises(ValueError):
+        f(x, out=np.empty((3, 3)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(quat.filter(lambda q: np.linalg.norm(q) > 1e-3))
+def test_mrp_round_trips(q):
+    p = qa.as_mrp(q)
+    assert np.linalg.norm(p) <= 1 + 1e-15  # the short one of the two MRPs
+    assert qa.distance(qa.from_mrp(p), q) < 1e-7
+    back = qa.as_mrp(qa.from_mrp(p))
+    if np.linalg.norm(p) < 1 - 1e-12:
+        np.testing.assert_allclose(back, p, atol=2e-15)
+    else:  # a half turn: p and −p are the same rotation, and w = 0 to rounding picks one
+        assert qa.distance(qa.from_mrp(back), q) < 1e-7
+    np.testing.assert_allclose(p, R(q).as_mrp(), atol=2e-15)
+
+
+@settings(max_examples=200, deadline=None)
+@given(arrays(np.float64, 3, elements=st.floats(-1e3, 1e3, allow_nan=False, width=64)))
+def test_gibbs_round_trips(g):
+    q = qa.from_gibbs(g)
+    assert q[0] > 0
+    np.testing.assert_allclose(qa.as_gibbs(q), g, rtol=1e-12, atol=1e-12)
+    assert qa.distance(qa.from_gibbs(qa.as_gibbs(q)), q) < 1e-7

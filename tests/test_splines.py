@@ -10,7 +10,7 @@ from scipy.spatial.transform import Slerp
 
 import quatarray as qa
 from quatarray import splines
-from quatarray._lanes import LANES, resample_streams
+from quatarray._spline_lanes import LANES, resample_streams
 from test_interpolation import R, ref_bezier, ref_controls, ref_flips, same_rot, smooth_keys
 
 

@@ -6,7 +6,7 @@ calls, counting numba's compile events (``numba:compile`` is broadcast only
 when a dispatcher really compiles, not when it loads from the cache).
 
 It warms a representative part of the table (``WARM``: row loops of
-algebra, rotation, conversions and Euler angles, a clip's forward
+algebra, rotating vectors, conversions and Euler angles, a clip's forward
 kinematics, serial and parallel, every layout) in float64 and one function
 in float32: 35-45 s on a two-core machine. The interpolation kernels are left
 out to keep it so (the whole table takes minutes of warm-up on two cores).
@@ -71,7 +71,7 @@ with event.install_listener("numba:compile", rec):
     st[...] = big[:10]
     qa.normalize(st, out=st)  # out= a strided input itself
     v = big[:10, 1:].copy()
-    qa.rotate(big[:1], v, out=v)  # rotation's own loop for out= v, one q of shape (1, 4)
+    qa.rotate(big[:1], v, out=v)  # rotate's own loop for out= v, one q of shape (1, 4)
     qa.multiply(big.astype(np.float32)[:10], big.astype(np.float32)[:10])
 ordinary = sum(1 for _, ev in rec.buffer if ev.is_start)
 walked = {}
@@ -154,7 +154,8 @@ def test_table_covers_every_public_entry_point():
     # the walk reaches what the issue found missing: trajectory, Clip.world, the one-pass resampling
     reached = {c[0] for calls in walk["calls"].values() for c in calls}
     for kernel in ("trajectory._match_sorted", "trajectory._moments_kernel", "trajectory._ape_kernel",
-                   "trajectory._rpe_kernel", "skeleton._world", "_lanes._lane_spline_bezier", "_lanes._gather_unit"):
+                   "trajectory._rpe_kernel", "skeleton._world",
+                   "_spline_lanes._lane_spline_bezier", "_spline_lanes._gather_unit"):
         assert f"quatarray.{kernel}" in reached
 
 

@@ -21,9 +21,9 @@ from .. import align as _align
 from .. import conversions as _conv
 from .. import davenport as _dav
 from .. import euler as _eul
-from .. import representations as _rep
-from .. import rotation as _rot
+from .. import layouts as _lay
 from .. import symmetry as _sym
+from .. import vectors as _vec
 from .._jit import FarRows, prange, rowloop
 from .._validate import as_float, check_core, elementwise
 
@@ -273,7 +273,7 @@ class Rotation:
         elif scalar_first:
             q = a.copy() if copy else a
         else:
-            q = _rep.from_xyzw(a)
+            q = _lay.from_xyzw(a)
         self._q = q
         self._single = q.ndim == 1
 
@@ -583,7 +583,7 @@ class Rotation:
         return out
 
     # ------------------------------------------------------------------
-    # other representations
+    # other parameterisations
 
     @staticmethod
     def from_matrix(matrix, *, assume_valid=False):
@@ -663,7 +663,7 @@ class Rotation:
         array([0.        , 0.        , 3.14159265])
         """
         p = _shape_check(_floats(mrp, "mrp"), "mrp", (3,), "(..., 3)")
-        q = _map(_rep._from_mrp, p, (3,), _Q)
+        q = _map(_conv._from_mrp, p, (3,), _Q)
         return Rotation._from_house(q, q.ndim == 1)
 
     def as_mrp(self):
@@ -675,7 +675,7 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 3.141592653589793]).as_mrp().round(12) + 0.0
         array([0., 0., 1.])
         """
-        return _map(_rep._as_mrp, self._q, _Q, (3,))
+        return _map(_conv._as_mrp, self._q, _Q, (3,))
 
     @staticmethod
     def from_euler(seq, angles, degrees=False):
@@ -810,7 +810,7 @@ class Rotation:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         if q.ndim == 1 and v.ndim == 1 and v.dtype is q.dtype:  # the lean path
             out = np.empty(3, q.dtype)
-            (_rotate_inv if inverse else _rot._rotate_one).serial(*((q[None], v[None]) if inverse else (v[None], q[None])), out[None])
+            (_rotate_inv if inverse else _vec._rotate_one).serial(*((q[None], v[None]) if inverse else (v[None], q[None])), out[None])
             return out
         ql, vl = q.shape[:-1], v.shape[:-1]
         if ql == vl and v.dtype is q.dtype:
@@ -820,7 +820,7 @@ class Rotation:
                 if inverse:
                     _rotate_inv(qf, vf, of)
                 else:
-                    _rot._rotate(qf, vf, of)
+                    _vec._rotate(qf, vf, of)
             return out
         if ql != vl:
             try:
@@ -831,7 +831,7 @@ class Rotation:
                 raise ValueError(f"Cannot broadcast {n} rotations to {m} vectors.") from None
         if inverse:
             return elementwise(_rotate_inv, [(q, "rotations", _Q), (v, "vectors", (3,))], [(3,)])
-        return _rot.rotate(q, v)
+        return _vec.rotate(q, v)
 
     def __mul__(self, other):
         """Composition ``self * other``: `other` applied first (leading dimensions broadcast).

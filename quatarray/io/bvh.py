@@ -349,7 +349,7 @@ def exact_euler(q, order):
     """
     from ..algebra import distance, multiply
     from ..euler import as_euler, from_euler
-    from ..rotation import rotate
+    from ..vectors import rotate
 
     q = np.asarray(q, dtype=np.float64)
     ang = as_euler(q, order, suppress_warnings=True)

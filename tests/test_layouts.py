@@ -1,4 +1,4 @@
-"""quatarray.representations against scipy's Rotation and independent formulas."""
+"""quatarray.layouts against scipy's Rotation and independent formulas."""
 
 import numpy as np
 import pytest
@@ -90,76 +90,25 @@ def test_from_su2_byte_order_ragged_and_masked(rng):
         qa.from_su2(np.ma.masked_array(u))
 
 
-def test_mrp_vs_scipy(rng):
-    from scipy.spatial.transform import Rotation
+def test_old_import_path():
+    # quatarray.representations held the layouts and MRP and Gibbs vectors: its names still import,
+    # the same objects as in quatarray.layouts and (MRP, Gibbs) quatarray.conversions
+    import quatarray.conversions as C
+    import quatarray.layouts as L
+    import quatarray.representations as old
+    from quatarray.representations import (
+        as_gibbs, as_left_matrix, as_mrp, as_right_matrix, as_su2, as_xyzw,
+        from_gibbs, from_mrp, from_scipy, from_su2, from_xyzw, to_scipy,
+    )  # fmt: skip
 
-    q = qa.random(1000, rng=rng) * rng.uniform(0.1, 10, (1000, 1))  # any scale, either sign
-    q[:3] = [[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0]]  # half turns, identity
-    p = qa.as_mrp(q)
-    np.testing.assert_allclose(p, Rotation.from_quat(q, scalar_first=True).as_mrp(), atol=1e-15, rtol=1e-13)
-    assert np.all(np.linalg.norm(p, axis=-1) <= 1 + 1e-15)
-    pp = rng.standard_normal((1000, 3)) * 2  # |p| > 1 too
-    np.testing.assert_allclose(qa.from_mrp(pp), Rotation.from_mrp(pp).as_quat(scalar_first=True), atol=1e-15)
-    assert np.all(qa.distance(qa.from_mrp(p), q) < 1e-7)  # round trip
-    np.testing.assert_allclose(qa.as_mrp(qa.from_mrp(p)), p, atol=1e-15)
-    assert np.isnan(qa.as_mrp([0, 0, 0, 0])).all()
-    np.testing.assert_allclose(qa.as_mrp([1e-300, 0, 0, 2e-300]), qa.as_mrp([1, 0, 0, 2]))
-
-
-def test_gibbs(rng):
-    q = qa.random(1000, rng=rng)
-    g = qa.as_gibbs(q)
-    axis, ang = qa.as_axis_angle(q)
-    np.testing.assert_allclose(g, np.tan(ang / 2)[:, None] * axis, rtol=1e-9)
-    np.testing.assert_allclose(qa.as_gibbs(-3 * q), g, rtol=1e-15)
-    assert np.all(qa.distance(qa.from_gibbs(g), q) < 1e-7)
-    assert np.all(qa.from_gibbs(g)[:, 0] > 0)
-    # half turns: inf along the axis; and back
-    np.testing.assert_array_equal(qa.as_gibbs([[0, 0, -1, 0], [0, 1, 1, 0], [0, 0, 0, 1]]),
-                                  [[0, np.inf, 0], [np.inf, np.inf, 0], [0, 0, np.inf]])
-    np.testing.assert_allclose(qa.from_gibbs([[0, -np.inf, 0], [np.inf, np.inf, 0]]),
-                               [[0, 0, -1, 0], [0, 2**-0.5, 2**-0.5, 0]])
-    assert np.isnan(qa.as_gibbs([0, 0, 0, 0])).all()
-    assert np.isnan(qa.from_gibbs([np.inf, np.nan, 0])).all()
-    np.testing.assert_allclose(qa.from_gibbs([1e300, 0, 0]), [0, 1, 0, 0], atol=1e-300)
-
-
-@pytest.mark.parametrize("fn, core", [("as_mrp", 4), ("from_mrp", 3), ("as_gibbs", 4), ("from_gibbs", 3)])
-def test_mrp_gibbs_dtype_out_broadcast(rng, fn, core):
-    f = getattr(qa, fn)
-    x = qa.random((5, 2), rng=rng)[..., :core].copy()
-    res = f(x)
-    r32 = f(x.astype(np.float32))
-    assert r32.dtype == np.float32 and res.dtype == np.float64
-    np.testing.assert_allclose(r32, res, rtol=1e-5, atol=1e-6)
-    out = np.empty_like(res)
-    assert f(x, out=out) is out
-    np.testing.assert_array_equal(out, res)
-    np.testing.assert_array_equal(f(x[:, ::-1][:, ::-1]), res)  # strided view
-    with pytest.raises(ValueError, match=rf"Expected `\w` to have shape \(\.\.\., {core}\)"):
-        f(np.ones((2, 5)))
-    with pytest.raises(ValueError):
-        f(x, out=np.empty((3, 3)))
-
-
-@settings(max_examples=200, deadline=None)
-@given(quat.filter(lambda q: np.linalg.norm(q) > 1e-3))
-def test_mrp_round_trips(q):
-    p = qa.as_mrp(q)
-    assert np.linalg.norm(p) <= 1 + 1e-15  # the short one of the two MRPs
-    assert qa.distance(qa.from_mrp(p), q) < 1e-7
-    back = qa.as_mrp(qa.from_mrp(p))
-    if np.linalg.norm(p) < 1 - 1e-12:
-        np.testing.assert_allclose(back, p, atol=2e-15)
-    else:  # a half turn: p and −p are the same rotation, and w = 0 to rounding picks one
-        assert qa.distance(qa.from_mrp(back), q) < 1e-7
-    np.testing.assert_allclose(p, R(q).as_mrp(), atol=2e-15)
-
-
-@settings(max_examples=200, deadline=None)
-@given(arrays(np.float64, 3, elements=st.floats(-1e3, 1e3, allow_nan=False, width=64)))
-def test_gibbs_round_trips(g):
-    q = qa.from_gibbs(g)
-    assert q[0] > 0
-    np.testing.assert_allclose(qa.as_gibbs(q), g, rtol=1e-12, atol=1e-12)
-    assert qa.distance(qa.from_gibbs(qa.as_gibbs(q)), q) < 1e-7
+    assert (as_xyzw, from_xyzw, to_scipy, from_scipy, as_left_matrix, as_right_matrix, as_su2, from_su2) == (
+        L.as_xyzw, L.from_xyzw, L.to_scipy, L.from_scipy, L.as_left_matrix, L.as_right_matrix, L.as_su2, L.from_su2)
+    assert (as_mrp, from_mrp, as_gibbs, from_gibbs) == (C.as_mrp, C.from_mrp, C.as_gibbs, C.from_gibbs)
+    assert as_mrp is qa.as_mrp and as_xyzw is qa.as_xyzw
+    layouts = {name for name, mod in qa._WHERE.items() if mod == "layouts"}
+    assert set(old.__all__) == layouts | {"as_mrp", "from_mrp", "as_gibbs", "from_gibbs"}
+    # the old module's other names: layouts' own, and the moved MRP and Gibbs code
+    assert old.left_matrix is L.left_matrix and old._as_su2 is L._as_su2
+    assert old.qmrp is C.qmrp and old.gibbs_quat is C.gibbs_quat and old._from_mrp is C._from_mrp
+    with pytest.raises(AttributeError, match="representations.*as_matrix"):
+        old.as_matrix  # noqa: B018 - never a name of the old module

@@ -1,4 +1,4 @@
-"""quatarray.rotation.rotate against scipy's Rotation.apply."""
+"""quatarray.vectors.rotate against scipy's Rotation.apply."""
 
 import numpy as np
 import pytest
@@ -114,3 +114,13 @@ def test_far_rows_with_out_and_out_v(rng, dtype, variant):
     assert np.allclose(got[near], want[near], atol=tol) and np.isnan(got[~near]).all()
     np.testing.assert_array_equal(into, got)
     np.testing.assert_array_equal(out, got)
+
+
+def test_old_import_path():
+    # the module was quatarray.rotation: that path is the same module object
+    import quatarray.rotation
+    import quatarray.vectors
+    from quatarray.rotation import rotate
+
+    assert quatarray.rotation is quatarray.vectors
+    assert rotate is qa.rotate is quatarray.vectors.rotate
