@@ -712,7 +712,7 @@ def _as_mrp_plain(i, args):
     return E.far_scale(n2)
 
 
-# on q as it is, the rows far from unit scale again on the scaled q (E.FarRows)
+# on q as it is, the rows far from unit scale again on the scaled q (rowloop(far=...))
 _as_mrp = rowloop(_as_mrp_plain, far=E.redo(E.store3, qmrp, "as_mrp"))
 
 

@@ -14,7 +14,7 @@ from ._validate import as_float, elementwise
 # E.far_excess(|q|²) on the way (two integer SIMD instructions per vector of
 # rows); only when a row was far from unit scale (or zero, inf, nan) a second,
 # serial kernel redoes those rows on the scaled q (E.qscaled). The body is
-# written out in the loop: as a function called per row (E.FarRows) and with
+# written out in the loop: as a function called per row (rowloop(far=...)) and with
 # a stored per-row flag the float32 loop ran 20-25 % slower than without far
 # rows.
 #
