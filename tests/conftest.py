@@ -36,11 +36,22 @@ def pytest_collection_modifyitems(session, config, items):
     one worker runs it while the others take the rest."""
     first = [item for item in items if item.nodeid.endswith("test_kernels_as_plain_python")]
     items[:] = first + [item for item in items if item not in first]
+    from quatarray import _jit
+
+    if _jit.CHECK_BOUNDS:  # the debug mode turns off what these tests check
+        reasons = {"needs_cache": "QUATARRAY_CHECK_BOUNDS=1 keeps numba's on-disk cache off",
+                   "needs_simd": "QUATARRAY_CHECK_BOUNDS=1: the bounds checks keep loops from vectorising"}
+        for item in items:
+            for name, why in reasons.items():
+                if item.get_closest_marker(name):
+                    item.add_marker(pytest.mark.skip(reason=why))
 
 
 # tests/typing holds scripts for the type checker (tests/test_typing.py), not tests:
 # one of them fails on purpose when run
 collect_ignore_glob = ["typing/*"]
+
+
 def _scipy_rotation_refused(exc):
     """True for the TypeError of a scipy older than a test's oracle needs: its
     ``Rotation`` refusing a keyword that newer releases take (``scalar_first=`` before

@@ -91,6 +91,7 @@ def test_kernels_stay_float32():
             assert len(arrays) == 2 and all(a.dtype.name == "float32" for a in arrays)
 
 
+@pytest.mark.needs_simd
 @pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="inspects compiled code")
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_as_euler_loop_vectorises(dtype):

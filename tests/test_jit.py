@@ -222,6 +222,7 @@ print(json.dumps(names))
 """
 
 
+@pytest.mark.needs_cache
 @pytest.mark.skipif(__import__("numba").config.DISABLE_JIT, reason="no compiled kernels, no cache")
 def test_cached_kernels_compile_again_when_any_source_file_changes(tmp_path):
     """numba stamps a function's cached code with its own file's hash only: a kernel

@@ -150,6 +150,7 @@ def _llvm17():
     return tuple(binding.llvm_version_info) >= (17,)
 
 
+@pytest.mark.needs_cache
 def test_unbroken_numba_gives_no_warning(tmp_path, expected):
     got = run_child(tmp_path)
     assert got["warnings"] == [] and got["missing"] == {}
@@ -157,6 +158,7 @@ def test_unbroken_numba_gives_no_warning(tmp_path, expected):
     assert got["cache"] and got["cached_files"] > 0
 
 
+@pytest.mark.needs_cache
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_internal_taken_away(tmp_path, expected, case):
     prelude, after, feature, cache = CASES[case]
@@ -311,6 +313,7 @@ print("|".join(np.asarray(x).tobytes().hex() for x in r))
 """
 
 
+@pytest.mark.needs_cache
 def test_first_calls_in_a_new_process_work_and_are_cached(tmp_path):
     """as_mrp, norm, angle and distance on far-range rows (the function copies of
     ``specialise(home=...)``) and from_matrix in a new process with an empty cache, then

@@ -185,6 +185,7 @@ def test_constant_rate_keys(k, seed, method, even):
     np.testing.assert_allclose(qa.spline(times, keys, nt, method=method, order=2), 0, atol=1e-11)
 
 
+@pytest.mark.needs_simd
 @pytest.mark.skipif(__import__("os").environ.get("NUMBA_DISABLE_JIT") == "1", reason="inspects compiled code")
 @pytest.mark.parametrize("method", ["bezier", "squad"])
 @pytest.mark.parametrize("order", [1, 2])

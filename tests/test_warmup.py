@@ -216,6 +216,7 @@ def test_bad_arguments():
         qa.warmup(names=["no_such_function"])
 
 
+@pytest.mark.needs_cache
 @pytest.mark.slow
 def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     # May take minutes with QUATARRAY_TEST_WARMUP=all (see the module docstring).
@@ -252,6 +253,7 @@ def test_after_warmup_a_new_process_compiles_nothing(tmp_path):
     assert res["first"]["start-up"] < 3.0
 
 
+@pytest.mark.needs_cache
 def test_in_background_fills_the_cache_beside_the_caller(tmp_path):
     """A worker started by in_background compiles its entries into the cache while
     the caller goes on; the caller's own cache writes take the worker's lock; a new
@@ -304,6 +306,7 @@ def test_test_workers_lock_their_cache_writes():
     assert IndexDataCacheFile.save.lock_path == os.environ["QUATARRAY_CACHE_LOCK"]
 
 
+@pytest.mark.needs_cache
 @pytest.mark.skipif(not _warmup._CAN_LOCK, reason="no file lock on this system")
 def test_cache_lock_from_the_environment(tmp_path):
     """QUATARRAY_CACHE_LOCK locks every cache write of a process that uses a kernel
