@@ -365,6 +365,9 @@ TABLE = {
     "lerp": _f("lerp", lambda f, s: _interp(f, s)),
     "nlerp": _f("nlerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
     "slerp": _f("slerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
+    # rows slerp's main loop leaves to a kernel of their own (identical and antipodal ends)
+    "slerp[rare rows]": _f("slerp", lambda f, s: (_each(f, s.p, s.p, s.t, out=True),
+                                                  _each(f, s.p, -s.p, s.t, out=True, shortest=False))),
     "double": _f("double", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bisect": _f("bisect", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bezier_controls": _f("bezier_controls", lambda f, s: (_each(f, s.keys), f(s.keys, s.times))),
