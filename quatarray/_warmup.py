@@ -388,6 +388,9 @@ TABLE = {
     # the rate loops serve sorted and unsorted new times alike
     **{f"spline[{m}, order={o}]": _spline(m, "new_unsorted", o)
        for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
+    # sorted new times over many keys: the rates piece by piece (splines._RATE_PIECES)
+    **{f"spline[{m}, many keys, order={o}]": _spline(m, "many", o)
+       for m in ("bezier", "slerp", "nlerp", "squad") for o in (1, 2)},
     # the spline classes (their kernels are the spline's: these compile what their calls add)
     "Slerp": _spline_class("Slerp"),
     **{f"{c}{'' if o == 0 else f'[order={o}]'}": _spline_class(c, (o,))
