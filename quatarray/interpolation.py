@@ -22,7 +22,7 @@ import os
 import numpy as np
 
 from . import _elements as E
-from ._jit import fmuladd, kernel, like, prange, rowloop
+from ._jit import fmuladd, kernel, like, prange, prefer_wide_vectors, rowloop
 from ._slerp import (
     arc,
     arc_fast,
@@ -83,6 +83,7 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
     per = ((n + chunks - 1) // chunks + B - 1) // B * B  # rows per chunk: whole blocks (whole words of rare_bits)
     total = 0
     for ch in prange(chunks):
+        prefer_wide_vectors()
         pb = max(ch * (8 * B), 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         lo = max(ch * per, 0)
         hi = min(n, lo + per)
@@ -228,6 +229,7 @@ def _bezier_controls(q, f_out, f_in, a, b):
     and b_{K−1} = slerp(q_{K−1}, q_{K−2}, 1/3) (to rounding)."""
     n = f_out.shape[0]
     for blk in prange((n + ROWS - 1) // ROWS):
+        prefer_wide_vectors()
         lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
         for j in range(min(n - lo, ROWS)):
             i = lo + j
