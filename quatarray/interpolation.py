@@ -89,14 +89,10 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
         hi = min(n, lo + per)
         for b0 in range(lo, hi, B):
             m = min(hi - b0, B)
+            # planes (B apart): tθ then sin tθ, v (four), ±1, cos tθ, rare
             for k in range(m):
                 th, v, sgn, r = arc_fast(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
-                planes[pb + k] = E.load1(t, b0 + k) * th
-                planes[pb + B + k] = v[0]
-                planes[pb + 2 * B + k] = v[1]
-                planes[pb + 3 * B + k] = v[2]
-                planes[pb + 4 * B + k] = v[3]
-                planes[pb + 5 * B + k] = like(th, 1.0) - sgn
+                E.stores_at(planes, pb + k, B, (E.load1(t, b0 + k) * th, v[0], v[1], v[2], v[3], like(th, 1.0) - sgn))
                 planes[pb + 7 * B + k] = r
             for k in range(m):
                 planes[pb + k], planes[pb + 6 * B + k] = sincos(planes[pb + k])
@@ -104,17 +100,15 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
                 i = b0 + k
                 pi = E.load4(p, i)
                 qi = E.load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
-                s = planes[pb + k]
-                c = planes[pb + 6 * B + k]
-                r = (fmuladd(s, planes[pb + B + k], c * pi[0]), fmuladd(s, planes[pb + 2 * B + k], c * pi[1]),
-                     fmuladd(s, planes[pb + 3 * B + k], c * pi[2]), fmuladd(s, planes[pb + 4 * B + k], c * pi[3]))
+                s, v0, v1, v2, v3, sq, c, rare = E.loads_at(planes, pb + k, B, 8)
+                r = (fmuladd(s, v0, c * pi[0]), fmuladd(s, v1, c * pi[1]), fmuladd(s, v2, c * pi[2]),
+                     fmuladd(s, v3, c * pi[3]))
                 # exact end (t = 0 is exact: sincos(0) = (0, 1)); a branch, which LLVM leaves
                 # scalar: the SIMD select of slerp_row ran 1.17x faster in cache but 0.8x at
                 # 2·10⁶ rows (from memory)
                 if E.load1(t, i) == like(s, 1.0):
-                    sq = planes[pb + 5 * B + k]
                     r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
-                if planes[pb + 7 * B + k] == like(s, 0.0):
+                if rare == like(s, 0.0):
                     E.store4(out, i, r)
                 else:  # a rare row keeps its input (out may be p or q), for _slerp_rare
                     rare_bits[i >> 6] |= np.uint64(1) << np.uint64(i & 63)

@@ -296,18 +296,6 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@inline
-def tile_q(tile, c, lane):
-    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane),
-            E.load1(tile, (c + 2) * TILE + lane), E.load1(tile, (c + 3) * TILE + lane))
-
-
-@inline
-def tile_arc(tile, c, lane):
-    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane), E.load1(tile, (c + 2) * TILE + lane),
-            E.load1(tile, (c + 3) * TILE + lane), E.load1(tile, (c + 4) * TILE + lane))
-
-
 @kernel
 def bezier_tile(out, state, count):
     """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
@@ -316,8 +304,8 @@ def bezier_tile(out, state, count):
     places (one copy of the long de Casteljau chain)."""
     tile, u, res, rows = state
     for lane in range(count):
-        r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
-                       tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), E.load1(u, lane))
+        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+        r = bezier_seg(col[0:4], col[4:8], col[8:12], col[12:16], col[16:21], col[21:26], col[26:31], E.load1(u, lane))
         E.store1(res, lane, r[0])
         E.store1(res, TILE + lane, r[1])
         E.store1(res, 2 * TILE + lane, r[2])
@@ -379,13 +367,9 @@ def bezier_rate_tile(out, state, count):
     prefer_wide_vectors()
     tile, u, res, rows = state
     for lane in range(count):
-        q0 = tile_q(tile, 0, lane)
-        a = tile_q(tile, 4, lane)
-        b = tile_q(tile, 8, lane)
-        q1 = tile_q(tile, 12, lane)
-        c0 = tile_arc(tile, 16, lane)
-        c1 = tile_arc(tile, 21, lane)
-        c2 = tile_arc(tile, 26, lane)
+        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+        q0, a, b, q1 = col[0:4], col[4:8], col[8:12], col[12:16]
+        c0, c1, c2 = col[16:21], col[21:26], col[26:31]
         ul = E.load1(u, lane)
         x0 = like(ul, 0.0)
         one = like(ul, 1.0)
