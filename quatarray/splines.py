@@ -218,23 +218,26 @@ def _eval(times, new_t, data, out):
     the method reads instead), and returns where it stopped and `count`. A
     method that batches its samples (the Bézier tile) has ``START(data)`` make a
     block's `state`, where `count` samples wait, stops a run when CAP are
-    waiting, and has ``FLUSH(out, state, count)`` evaluate them (called at two
-    places only, so LLVM keeps it one function)."""
+    waiting, and has ``FLUSH(out, state, count)`` evaluate them: called at one
+    place only (when CAP wait, and at the block's end), so the long chain of a
+    Bézier tile is inlined once (numba's IR inlining: no kernel of its own to compile)."""
     m = new_t.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
         hi = min(m, j + BLOCK)
         sg = 0
         state = START(data)
-        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            while j < e:
-                j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
-                if count == CAP:
-                    FLUSH(out, state, count)
-                    count = np.int64(0)
-        FLUSH(out, state, count)
+        count = np.int64(0)  # not the literal 0
+        while True:
+            if j < hi:
+                sg, e = next_run(times, new_t, j, hi, sg)
+                while j < e and count != CAP:
+                    j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
+            if count == CAP or j >= hi:
+                FLUSH(out, state, count)
+                count = np.int64(0)
+                if j >= hi:
+                    break
 
 
 @ir_inline
@@ -296,12 +299,12 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@kernel
+@ir_inline
 def bezier_tile(out, state, count):
     """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
     SIMD over its lanes, into `res` column by column), then store them in their rows of
-    `out`. The FLUSH of the Bézier method: a kernel of its own, called at _eval's two
-    places (one copy of the long de Casteljau chain)."""
+    `out`. The FLUSH of the Bézier method, inlined at _eval's one place (one copy of the
+    long de Casteljau chain)."""
     tile, u, res, rows = state
     for lane in range(count):
         col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
@@ -329,8 +332,7 @@ def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
     tile, u, res, rows = state
     i = j
     while i < e and count < TILE:
-        for c in range(NSEG):
-            tile[c * TILE + count] = seg[n + c]
+        E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
         u[count] = like(x0, (new_t[i] - t0) / h)
         rows[count] = i
         count += 1
@@ -347,8 +349,7 @@ def run_bezier_rates(times, new_t, seg, out, sg, j, e, state, count):
     scale = inv_h if ORDER == 1 else inv_h * inv_h
     i = j
     while i < e and count < TILE:
-        for c in range(NSEG):
-            tile[c * TILE + count] = seg[n + c]
+        E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
         u[count] = like(x0, (new_t[i] - t0) / h)
         res[3 * TILE + count] = scale
         rows[count] = i
@@ -857,7 +858,7 @@ _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
 for _order in (1, 2):
     _RATES["bezier", _order] = _eval_of(
         f"_rates_bezier_{_order}", ir_inline(specialise(run_bezier_rates, f"_{_order}", ORDER=_order)),
-        start_bezier, kernel(specialise(bezier_rate_tile, f"_{_order}", ORDER=_order)), TILE)
+        start_bezier, ir_inline(specialise(bezier_rate_tile, f"_{_order}", ORDER=_order)), TILE)
 # the rates of sorted new times over many keys, piece by piece as _PIECES (the rate loop
 # on each piece's table: a table that stays in cache, built in parallel)
 _RATE_PIECES = {
