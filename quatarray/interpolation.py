@@ -84,23 +84,24 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
     total = 0
     for ch in prange(chunks):
         prefer_wide_vectors()
-        pb = max(ch * (8 * B), 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        lo = max(ch * per, 0)
-        hi = min(n, lo + per)
+        # (the planes' accessors are builtins, without numba's wraparound of negative
+        # indices; conditionals, not min and max, which are numba overloads to compile)
+        pb = ch * (8 * B)
+        lo = ch * per
+        hi = lo + per if lo + per < n else n
         for b0 in range(lo, hi, B):
-            m = min(hi - b0, B)
-            # planes (B apart): tθ then sin tθ, v (four), ±1, cos tθ, rare
+            m = hi - b0 if hi - b0 < B else B
+            # planes (B apart): tθ then sin tθ, v (four), ±1, rare, cos tθ
             for k in range(m):
                 th, v, sgn, r = arc_fast(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
-                E.stores_at(planes, pb + k, B, (E.load1(t, b0 + k) * th, v[0], v[1], v[2], v[3], like(th, 1.0) - sgn))
-                planes[pb + 7 * B + k] = r
+                E.stores_at(planes, pb + k, B, (E.load1(t, b0 + k) * th, v[0], v[1], v[2], v[3], like(th, 1.0) - sgn, r))
             for k in range(m):
-                planes[pb + k], planes[pb + 6 * B + k] = sincos(planes[pb + k])
+                E.stores_at(planes, pb + k, 7 * B, sincos(E.load1(planes, pb + k)))
             for k in range(m):
                 i = b0 + k
                 pi = E.load4(p, i)
                 qi = E.load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
-                s, v0, v1, v2, v3, sq, c, rare = E.loads_at(planes, pb + k, B, 8)
+                s, v0, v1, v2, v3, sq, rare, c = E.loads_at(planes, pb + k, B, 8)
                 r = (fmuladd(s, v0, c * pi[0]), fmuladd(s, v1, c * pi[1]), fmuladd(s, v2, c * pi[2]),
                      fmuladd(s, v3, c * pi[3]))
                 # exact end (t = 0 is exact: sincos(0) = (0, 1)); a branch, which LLVM leaves
