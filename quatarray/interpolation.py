@@ -225,8 +225,8 @@ def _bezier_controls(q, f_out, f_in, a, b):
     n = f_out.shape[0]
     for blk in prange((n + ROWS - 1) // ROWS):
         prefer_wide_vectors()
-        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        for j in range(min(n - lo, ROWS)):
+        lo = blk * ROWS  # (the row accessors are builtins: no wraparound; no min, a numba overload)
+        for j in range(n - lo if n - lo < ROWS else ROWS):
             i = lo + j
             r = controls4(E.load4(q, i), E.load4(q, i + 1), E.load4(q, i + 2), E.load1(f_out, i), E.load1(f_in, i))
             E.store4(a, i, r[0])

@@ -224,7 +224,7 @@ def _eval(times, new_t, data, out):
     m = new_t.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
-        hi = min(m, j + BLOCK)
+        hi = j + BLOCK if j + BLOCK < m else m  # (not min: a numba overload to compile)
         sg = 0
         state = START(data)
         count = np.int64(0)  # not the literal 0
@@ -750,7 +750,7 @@ def _unit_unflip(p, out, a, flip0):
     # the sign of unflip_sign (−1 negate, 1 keep, 0: a zero or nan row) in place of the
     # dot product's (the tie rule of quatarray._slerp)
     for base in range(0, p.shape[0], UNIT_BLOCK):
-        m = min(UNIT_BLOCK, p.shape[0] - base)
+        m = UNIT_BLOCK if UNIT_BLOCK < p.shape[0] - base else p.shape[0] - base  # (not min: an overload)
         i0 = a + base
         for k in range(m):
             E.store4(out, i0 + k, E.qnormalize(E.load4(p, base + k)))
