@@ -17,8 +17,8 @@ Internal API (no checks; for :mod:`quatarray.splines`, on unit keys of shape (K,
 """
 
 import math
-import os
 
+import numba
 import numpy as np
 
 from . import _elements as E
@@ -51,7 +51,7 @@ ROWS = 1024
 
 
 SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
-SLERP_CHUNKS = 4 * (os.cpu_count() or 1)  # at most this many chunks of rows (each its own planes)
+SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
 
 
 @rowloop(rows=2)
@@ -143,7 +143,8 @@ def _slerp_rare(p, q, t, shortest, rare_bits, out):
 def _run_slerp(p, q, t, shortest, out):
     """:func:`_slerp` on flat rows, then :func:`_slerp_rare` if it left rows."""
     n = t.shape[0]
-    chunks = max(1, min(SLERP_CHUNKS, (n + SLERP_BLOCK - 1) // SLERP_BLOCK))
+    blocks = max(1, (n + SLERP_BLOCK - 1) // SLERP_BLOCK)
+    chunks = blocks if blocks <= SLERP_CHUNKS else min(blocks, SLERP_CHUNKS * numba.get_num_threads())
     planes = np.empty(chunks * 8 * SLERP_BLOCK, out.dtype)
     rare_bits = np.zeros((n + 63) // 64, np.uint64)
     if _slerp(p, q, t, shortest, planes, rare_bits, out):
