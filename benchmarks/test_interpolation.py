@@ -6,7 +6,11 @@ scipy RotationSpline and numpy-quaternion squad), spline-slerp (against scipy Sl
 spline-cubic-order{0,1,2} (``method="cubic"``, scipy's C² curve, against scipy
 RotationSpline built and evaluated in the call, as quatarray's call does, and
 evaluated only), spline-rates (``order`` 0, 1, 2 of bezier and cubic side by side:
-the targets are cubic ≥ 10× scipy and order 1 within 2× of order 0).
+the targets are cubic ≥ 10× scipy and order 1 within 2× of order 0),
+spline-bezier-order{1,2} (the Bézier curve's angular velocity and acceleration
+against scipy RotationSpline's ``(t, order)`` built in the call, on the stream of
+``quatarray bench``'s rows: 1.25·10⁵ keys at 30 Hz with sign flips → 5·10⁵
+samples; target ≥ 20× each).
 """
 
 import numpy as np
@@ -149,3 +153,33 @@ def test_spline_cubic_scipy_evaluated(benchmark, stream, order):
 def test_spline_rates_quatarray(benchmark, stream, method, order):
     times, keys, new = stream
     run(benchmark, lambda: qa.spline(times, keys, new, method=method, order=order))
+
+
+# ---- the Bézier curve's rates against scipy's (quatarray bench's rows)
+
+
+@pytest.fixture(scope="module")
+def bench_stream():
+    """``quatarray bench``'s spline stream: K = 125 000 keys at 30 Hz, every third negated,
+    four samples per segment."""
+    rng = np.random.default_rng(0)
+    k = 125_000
+    times = np.arange(k) / 30.0
+    keys = qa.from_rotvec(np.cumsum(rng.normal(0, 0.05, (k, 3)), axis=0))
+    keys[1::3] *= -1
+    return times, keys, np.linspace(times[0], times[-1], 4 * (k - 1) + 1)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_spline_bezier_rates_quatarray(benchmark, bench_stream, order):
+    times, keys, new = bench_stream
+    benchmark.group = f"spline-bezier-order{order}"
+    run(benchmark, lambda: qa.spline(times, keys, new, method="bezier", order=order))
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_spline_bezier_rates_scipy_rotationspline(benchmark, bench_stream, order):
+    times, keys, new = bench_stream
+    benchmark.group = f"spline-bezier-order{order}"
+    r = Rotation.from_quat(keys, scalar_first=True)
+    run(benchmark, lambda: RotationSpline(times, r)(new, order))

@@ -10,6 +10,9 @@ vector, a quaternion and a 3×3 matrix.
                        ``store33(out, i, m)``
 ``loads(a, j, k)``     elements j … j + k − 1 of a C-contiguous buffer as a k-tuple
                        (k literal); ``stores(out, j, x)``: a flat table's row
+``loads_at(a, j, s,    elements j, j + s, …, j + (k − 1)s of a C-contiguous buffer
+k)``                   (k literal); ``stores_at(out, j, s, x)``: a column of planes
+                       (SIMD lanes side by side, such as a tile's)
 =====================  ==============================================================
 
 Compiled, a C-contiguous array is addressed as a flat buffer at a literal
@@ -245,6 +248,68 @@ def _type_stores(context):
 def _lower_stores(context, builder, sig, args):
     aryty, ity, xty = sig.args
     return _store_run(context, builder, aryty, args[0], (args[1], ity), 1, _tuple_items(builder, args[2], xty))
+
+
+def loads_at(a, j, step, k):
+    """Elements j, j + step, …, j + (k − 1)·step of a C-contiguous array's buffer, as a
+    k-tuple (k a literal integer): one lane's column of planes laid side by side."""
+    return tuple(a.reshape(-1)[j : j + k * step : step])
+
+
+def stores_at(out, j, step, x):
+    """The tuple x into elements j, j + step, … of a C-contiguous array's buffer."""
+    out.reshape(-1)[j : j + len(x) * step : step] = x
+
+
+def _strided_pointers(context, builder, aryty, a, j, step, count):
+    """The addresses of elements j + c·step, c < count, of the C-contiguous array `a`."""
+    ary = context.make_array(aryty)(context, builder, a)
+    j = context.cast(builder, j[0], types.unliteral(j[1]), types.intp)
+    step = context.cast(builder, step[0], types.unliteral(step[1]), types.intp)
+    ptrs = []
+    for c in range(count):
+        idx = builder.add(j, builder.mul(step, context.get_constant(types.intp, c)))
+        if CHECK_BOUNDS:
+            cgutils.do_boundscheck(context, builder, idx, ary.nitems)
+        ptrs.append(builder.gep(ary.data, [idx], inbounds=True))
+    return ptrs
+
+
+@type_callable(loads_at)
+def _type_loads_at(context):
+    def typer(a, j, step, k):
+        if (isinstance(a, types.Array) and a.layout == "C" and isinstance(j, types.Integer)
+                and isinstance(step, types.Integer) and isinstance(k, types.IntegerLiteral)):
+            return types.UniTuple(a.dtype, k.literal_value)
+
+    return typer
+
+
+@lower_builtin(loads_at, types.Array, types.Integer, types.Integer, types.IntegerLiteral)
+def _lower_loads_at(context, builder, sig, args):
+    aryty, jty, sty, kty = sig.args
+    ptrs = _strided_pointers(context, builder, aryty, args[0], (args[1], jty), (args[2], sty), kty.literal_value)
+    vals = [builder.load(p, align=_align(aryty)) for p in ptrs]
+    return context.make_tuple(builder, sig.return_type, vals)
+
+
+@type_callable(stores_at)
+def _type_stores_at(context):
+    def typer(out, j, step, x):
+        if (isinstance(out, types.Array) and out.layout == "C" and out.mutable and isinstance(j, types.Integer)
+                and isinstance(step, types.Integer) and isinstance(x, types.BaseTuple)):
+            return types.none
+
+    return typer
+
+
+@lower_builtin(stores_at, types.Array, types.Integer, types.Integer, types.BaseTuple)
+def _lower_stores_at(context, builder, sig, args):
+    aryty, jty, sty, xty = sig.args
+    ptrs = _strided_pointers(context, builder, aryty, args[0], (args[1], jty), (args[2], sty), len(xty))
+    for p, (x, t) in zip(ptrs, _tuple_items(builder, args[3], xty)):
+        builder.store(context.cast(builder, x, types.unliteral(t), aryty.dtype), p, align=_align(aryty))
+    return context.get_dummy_value()
 
 
 for _fn, _width in _ROWS.items():

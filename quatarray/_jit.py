@@ -593,6 +593,33 @@ def _lower_prefer_no_gather(context, builder, sig, args):
     return context.get_dummy_value()
 
 
+def prefer_wide_vectors():
+    """Compile the function this is called in with 512-bit vectors where the CPU has them.
+
+    LLVM's tuning for AVX-512 CPUs prefers 256-bit vectors; a kernel whose loop is
+    long arithmetic on registers (no memory-bound streaming), evaluated as SIMD lanes,
+    runs faster with twice the lanes (the Bézier spline's rate tiles). The function
+    gets LLVM's ``"prefer-vector-width"="512"`` attribute
+    (:func:`quatarray._numba_internals.add_wide_vectors`): it changes the
+    instructions chosen only (each lane computes what it did), and nothing on CPUs
+    without AVX-512. Call it in the kernel's body (a ``prange`` body is a function of
+    its own). In plain Python it does nothing."""
+
+
+@type_callable(prefer_wide_vectors)
+def _type_prefer_wide_vectors(context):
+    def typer():
+        return types.none
+
+    return typer
+
+
+@lower_builtin(prefer_wide_vectors)
+def _lower_prefer_wide_vectors(context, builder, sig, args):
+    _ni.add_wide_vectors(context, builder)
+    return context.get_dummy_value()
+
+
 def exponent_scales(m):
     """``(r, c) = (2^(1-E), 2^E)`` for a positive normal float ``m = 2^E·f``,
     1 ≤ f < 2, in m's float type: r·m lies in [2, 4) and c·r = 2, both exactly

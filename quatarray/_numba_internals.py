@@ -23,6 +23,8 @@ wrappers                   options and the class swap above                (slow
 ``prefer_no_gather``       ``codegen()._tm_features``, llvmlite's          the function keeps the target's
                            ``FunctionAttributes`` as a set whose members   features (the same results, maybe
                            print as written, LLVM >= 17                    slower on AVX-512)
+``prefer_wide_vectors``    llvmlite's ``FunctionAttributes`` as a set      256-bit vectors on AVX-512 (the same
+                           whose members print as written                  results, slower)
 compile counts             ``numba.core.event``'s compile listener         the warm-up reports no count
 =========================  ==============================================  ======================================
 
@@ -428,6 +430,24 @@ def add_target_features(context, builder, extra=NO_GATHER_FEATURES):
     features = context.codegen()._tm_features
     joined = f"{features},{extra}" if features else extra
     set.add(builder.function.attributes, f'"target-features"="{joined}"')
+
+
+_WIDE_OK = []  # [bool] once probed
+
+
+def add_wide_vectors(context, builder):
+    """Give the function being lowered LLVM's ``"prefer-vector-width"="512"``: on
+    AVX-512 targets, whose LLVM tuning prefers 256-bit vectors, its loops vectorise
+    with 512-bit ones (a tuning attribute: elsewhere nothing changes, and the
+    instructions of a lane, so the results, are the same). Nothing where llvmlite does
+    not print a string attribute."""
+    if not _WIDE_OK:
+        ok = _probe_string_attribute()
+        if not ok:
+            degrade("prefer_wide_vectors", "llvmlite's function attributes do not print a string attribute")
+        _WIDE_OK.append(ok)
+    if _WIDE_OK[0]:
+        set.add(builder.function.attributes, '"prefer-vector-width"="512"')
 
 
 # ---------------------------------------------------------------- compile events

@@ -108,6 +108,46 @@ def acc_coeffs(n2, s, c):
 
 
 @element
+def angle_coeffs(n2, n, s, c):
+    """(k1, k2, ki, im2): :func:`jac_coeffs` and :func:`inv_coeff` of the rotation vector r
+    with |r|² = n2 and |r| = n both given (no square root), s, c = sin, cos of n/2, with
+    one division for 1/n² (im2, 1 below the series' threshold: for :func:`acc_coeffs_of`)
+    and one for cot(n/2) = c/s, where those two compute four (the rate loops wait on the
+    divider)."""
+    one = like(n2, 1.0)
+    two = like(n2, 2.0)
+    small = n2 < like(n2, SMALL2)
+    m2 = select(small, one, n2)  # no 0/0 in the closed forms (their results are not used)
+    nn = select(small, one, n)
+    im2 = one / m2
+    k1 = two * s * s * im2
+    k2 = (nn - two * s * c) * im2 * (nn * im2)  # /(n² n): 1/n = n/n²
+    ki = (one - like(n2, 0.5) * nn * c / select(small, one, s)) * im2
+    k1s = _series(n2, 0.5, -1.0 / 24.0, 1.0 / 720.0, -1.0 / 40320.0, 1.0 / 3628800.0, -1.0 / 479001600.0)
+    k2s = _series(n2, 1.0 / 6.0, -1.0 / 120.0, 1.0 / 5040.0, -1.0 / 362880.0, 1.0 / 39916800.0, -1.0 / 6227020800.0)
+    kis = _series(n2, 1.0 / 12.0, 1.0 / 720.0, 1.0 / 30240.0, 1.0 / 1209600.0, 1.0 / 47900160.0,
+                  691.0 / 1307674368000.0)
+    return select(small, k1s, k1), select(small, k2s, k2), select(small, kis, ki), im2
+
+
+@element
+def acc_coeffs_of(n2, n, s, c, im2):
+    """:func:`acc_coeffs` given |r| = n and im2 of :func:`angle_coeffs` (no division)."""
+    small = n2 < like(n2, SMALL2)
+    nn = select(small, like(n2, 1.0), n)
+    two = like(n2, 2.0)
+    s2 = s * s
+    sc = s * c
+    i4 = im2 * im2
+    j1 = (like(n2, 4.0) * s2 - two * nn * sc) * i4
+    j2 = (like(n2, 6.0) * sc - like(n2, 3.0) * nn + two * nn * s2) * i4 * (nn * im2)
+    j1s = _series(n2, 1.0 / 12.0, -1.0 / 180.0, 1.0 / 6720.0, -1.0 / 453600.0, 1.0 / 47900160.0, -1.0 / 7264857600.0)
+    j2s = _series(n2, -1.0 / 60.0, 1.0 / 1260.0, -1.0 / 60480.0, 1.0 / 4989600.0, -1.0 / 622702080.0,
+                  1.0 / 108972864000.0)
+    return select(small, j1s, j1), select(small, j2s, j2)
+
+
+@element
 def jac(r, k1, k2, v):
     """J(r)·v = v − k1 r×v + k2 r×(r×v)."""
     a = cross(r, v)
@@ -159,6 +199,53 @@ def log_arc(a, b):
 
 
 @element
+def log_arc_n(a, b):
+    """:func:`log_arc` and |r| = 2θ: (r, n2, n, s, c), s and c with one division."""
+    d = qmul(qconj(a), b)
+    dv = (d[1], d[2], d[3])
+    un = np.sqrt(vdot(dv, dv))
+    th = atan2(un, d[0])
+    zero = like(un, 0.0)
+    two = like(un, 2.0)
+    f = select(un > zero, two * th / un, two)
+    ind = like(un, 1.0) / np.sqrt(d[0] * d[0] + un * un)
+    return vscale(dv, f), like(un, 4.0) * th * th, two * th, un * ind, d[0] * ind
+
+
+@element
+def qexp_half_n(y, ny2, ny, hs, hc):
+    """:func:`qexp_half` given |y| = ny (no square root)."""
+    small = ny2 < like(ny2, TINY2)
+    f = hs / select(small, like(ny2, 1.0), ny)
+    fs = like(ny2, 0.5) - ny2 * (like(ny2, 1.0 / 48.0) - ny2 * like(ny2, 1.0 / 3840.0))
+    f = select(small, fs, f)
+    return (hc, f * y[0], f * y[1], f * y[2])
+
+
+@element
+def slerp_rates(a, wa, b, wb, w, dw):
+    """(s, Ω_s, y, k's of Exp(y), r, r', ki) of s = slerp(a, b, w) on the plain great arc,
+    given a, b and their body rates wa, wb per unit u, and w, w' = dw.
+    s = a ⊗ Exp(y), y = w r, r = Log(a* ⊗ b). The angles |r| = 2θ and |y| = |w|·|r|
+    are known (no square roots) and the coefficients share their divisions
+    (:func:`angle_coeffs`)."""
+    r, n2, n, s_, c_ = log_arc_n(a, b)
+    k1, k2, ki, im2 = angle_coeffs(n2, n, s_, c_)
+    wd = vsub(wb, unrotate(qmul(qconj(a), b), wa))  # Ω_D
+    rd = jac_inv(r, ki, wd)
+    y = vscale(r, w)
+    yd = vadd(vscale(r, dw), vscale(rd, w))
+    ny2 = w * w * n2
+    ny = abs(w) * n
+    hs, hc = sincos(like(w, 0.5) * ny)  # half the angle |y| = |w|·|r|
+    e = qexp_half_n(y, ny2, ny, hs, hc)
+    ky1, ky2, _kyi, imy2 = angle_coeffs(ny2, ny, hs, hc)
+    wy = jac(y, ky1, ky2, yd)
+    ws = vadd(unrotate(e, wa), wy)
+    return qmul(a, e), ws, (r, rd, wd, n2, n, s_, c_, k2, ki, im2, y, yd, ny2, ny, hs, hc, ky1, ky2, imy2, e, wy)
+
+
+@element
 def qexp_half(y, ny2, hs, hc):
     """Exp(y) = (cos(n/2), sin(n/2) y/n), n = |y|, given hs, hc = sin, cos of n/2."""
     small = ny2 < like(ny2, TINY2)
@@ -170,43 +257,35 @@ def qexp_half(y, ny2, hs, hc):
     return (hc, f * y[0], f * y[1], f * y[2])
 
 
-@element
-def slerp_rates(a, wa, b, wb, w, dw):
-    """(s, Ω_s, y, k's of Exp(y), r, r', ki) of s = slerp(a, b, w) on the plain great arc,
-    given a, b and their body rates wa, wb per unit u, and w, w' = dw.
-    s = a ⊗ Exp(y), y = w r, r = Log(a* ⊗ b)."""
-    r, n2, s_, c_ = log_arc(a, b)
-    k1, k2 = jac_coeffs(n2, s_, c_)
-    ki = inv_coeff(n2, s_, c_)
-    wd = vsub(wb, unrotate(qmul(qconj(a), b), wa))  # Ω_D
-    rd = jac_inv(r, ki, wd)
-    y = vscale(r, w)
-    yd = vadd(vscale(r, dw), vscale(rd, w))
-    ny2 = w * w * n2
-    hs, hc = sincos(like(w, 0.5) * abs(w) * np.sqrt(n2))  # half the angle |y| = |w|·|r|
-    e = qexp_half(y, ny2, hs, hc)
-    ky1, ky2 = jac_coeffs(ny2, hs, hc)
-    wy = jac(y, ky1, ky2, yd)
-    ws = vadd(unrotate(e, wa), wy)
-    return qmul(a, e), ws, (r, rd, wd, n2, s_, c_, k2, ki, y, yd, ny2, hs, hc, ky1, ky2, e, wy)
-
-
-@element
+@element(how="trace")  # branches on None (no acceleration given), not on a number
 def slerp_acc(a, wa, ga, b, wb, gb, w, dw, ddw):
     """(s, Ω_s, Γ_s) of s = slerp(a, b, w) given a, b, their body rates wa, wb and
-    accelerations ga, gb per unit u, and w, w', w''."""
+    accelerations ga, gb per unit u, and w, w', w''. ``ga = gb = None`` (ends on
+    fixed arcs: no acceleration) and ``ddw = None`` (w'' = 0) leave out those terms
+    (from a traced caller, :func:`slerp_acc_fixed`), the same values but for the
+    sign of a zero."""
     s, ws, x = slerp_rates(a, wa, b, wb, w, dw)
-    r, rd, wd, n2, s_, c_, k2, ki, y, yd, ny2, hs, hc, ky1, ky2, e, wy = x
+    r, rd, wd, n2, n, s_, c_, k2, ki, im2, y, yd, ny2, ny, hs, hc, ky1, ky2, imy2, e, wy = x
     d = qmul(qconj(a), b)
     z = unrotate(d, wa)
-    gd = vadd(vsub(gb, unrotate(d, ga)), cross(wd, z))  # Γ_D
-    j1, j2 = acc_coeffs(n2, s_, c_)
+    gd = cross(wd, z) if ga is None else vadd(vsub(gb, unrotate(d, ga)), cross(wd, z))  # Γ_D
+    j1, j2 = acc_coeffs_of(n2, n, s_, c_, im2)
     rdd = jac_inv(r, ki, vsub(gd, jac_dot(r, rd, j1, j2, k2)))
-    ydd = vadd(vadd(vscale(r, ddw), vscale(rd, like(w, 2.0) * dw)), vscale(rdd, w))
-    yj1, yj2 = acc_coeffs(ny2, hs, hc)
+    ydd = vscale(rd, like(w, 2.0) * dw)
+    if ddw is not None:
+        ydd = vadd(vscale(r, ddw), ydd)
+    ydd = vadd(ydd, vscale(rdd, w))
+    yj1, yj2 = acc_coeffs_of(ny2, ny, hs, hc, imy2)
     gy = vadd(jac(y, ky1, ky2, ydd), jac_dot(y, yd, yj1, yj2, ky2))
     za = unrotate(e, wa)
-    gs = vadd(vsub(unrotate(e, ga), cross(wy, za)), gy)
+    gs = vsub(gy, cross(wy, za)) if ga is None else vadd(vsub(unrotate(e, ga), cross(wy, za)), gy)
     return s, ws, gs
+
+
+@element
+def slerp_acc_fixed(a, wa, b, wb, w, dw, ddw):
+    """:func:`slerp_acc` of ends on fixed arcs (their accelerations zero): the
+    Bézier chain's second level and squad's outer slerp."""
+    return slerp_acc(a, wa, None, b, wb, None, w, dw, ddw)
 
 

@@ -365,6 +365,9 @@ TABLE = {
     "lerp": _f("lerp", lambda f, s: _interp(f, s)),
     "nlerp": _f("nlerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
     "slerp": _f("slerp", lambda f, s: (_interp(f, s), _interp(f, s, shortest=False))),
+    # rows slerp's main loop leaves to a kernel of their own (identical and antipodal ends)
+    "slerp[rare rows]": _f("slerp", lambda f, s: (_each(f, s.p, s.p, s.t, out=True),
+                                                  _each(f, s.p, -s.p, s.t, out=True, shortest=False))),
     "double": _f("double", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bisect": _f("bisect", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bezier_controls": _f("bezier_controls", lambda f, s: (_each(f, s.keys), f(s.keys, s.times))),
@@ -385,6 +388,9 @@ TABLE = {
     # the rate loops serve sorted and unsorted new times alike
     **{f"spline[{m}, order={o}]": _spline(m, "new_unsorted", o)
        for m in ("bezier", "slerp", "nlerp", "squad", "cubic") for o in (1, 2)},
+    # sorted new times over many keys: the rates piece by piece (splines._RATE_PIECES)
+    **{f"spline[{m}, many keys, order={o}]": _spline(m, "many", o)
+       for m in ("bezier", "slerp", "nlerp", "squad") for o in (1, 2)},
     # the spline classes (their kernels are the spline's: these compile what their calls add)
     "Slerp": _spline_class("Slerp"),
     **{f"{c}{'' if o == 0 else f'[order={o}]'}": _spline_class(c, (o,))

@@ -18,10 +18,11 @@ Internal API (no checks; for :mod:`quatarray.splines`, on unit keys of shape (K,
 
 import math
 
+import numba
 import numpy as np
 
 from . import _elements as E
-from ._jit import fmuladd, like, prange, rowloop
+from ._jit import fmuladd, like, prange, prefer_wide_vectors, rowloop
 from ._slerp import (
     arc,
     arc_fast,
@@ -49,75 +50,105 @@ ROWS = 1024
 # batched loops. Quaternion outputs are flat (4n,) views (see `_flat`).
 
 
-SLERP_BLOCK = 256  # rows of _slerp's planes (7 planes: 14 KB in float64, in L1 cache)
+SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
+SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
 
 
 @rowloop(rows=2)
-def _slerp(p, q, t, shortest, out):
-    """:func:`quatarray._slerp.slerp4` row by row, in three passes over blocks of
-    SLERP_BLOCK rows: the arcs (the angle tθ, the tangent v and the sign of q, from
-    :func:`quatarray._slerp.arc`) into planes; the sine and cosine of the angles, in
-    place; then the rows p cos tθ + v sin tθ (±q where t = 1), read from the planes
-    and the inputs, so `out` may be `p` or `q`.
+def _slerp(p, q, t, shortest, planes, rare_bits, out):
+    """:func:`quatarray._slerp.slerp4` row by row but for the rare pairs (nearly
+    antipodal, identical ends, ties, nan: see :func:`quatarray._slerp.arc_fast`),
+    which it leaves as they are in `out`, sets their bits in `rare_bits` (bit i % 64
+    of word i // 64, all zero on entry) and counts: :func:`_slerp_rare` does them
+    (compiled only when a call meets one). Returns how many there were.
+
+    The rows come in ``planes.shape[0] // (8 SLERP_BLOCK)`` chunks (the prange), each
+    with its own planes, in blocks of SLERP_BLOCK rows, in three passes: the arcs (the
+    angle tθ, the tangent v and the sign of q, from :func:`quatarray._slerp.arc_fast`)
+    into planes; the sine and cosine of the angles, in place; then the rows
+    p cos tθ + v sin tθ (±q where t = 1), read from the planes and the inputs, so
+    `out` may be `p` or `q`.
 
     In one pass, each row is a chain of dependent operations (chords, square
     roots, atan, sincos) longer than the CPU can overlap with the next rows: the
     loop waited on it (48 Mq/s on one Zen 3 core). Each pass's chain is shorter,
     and the first two run as SIMD code (the third, light, LLVM leaves scalar):
     61 Mq/s, and 70 with the fused multiply-adds of :func:`quatarray._jit.fmuladd`
-    in the trigonometry, the chords and the rows."""
+    in the trigonometry, the chords and the rows. A first call compiles less than
+    with the planes allocated here (that was 15 % of its compile) and the rare
+    pairs' exact arc (:func:`quatarray._slerp.arc`) inlined (another 15 %)."""
     n = t.shape[0]
     B = SLERP_BLOCK
-    for blk in prange((n + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        pl = np.empty(8 * B, out.dtype)  # tθ then sin tθ, v (four planes), ±1, cos tθ, rare (arc_fast)
-        for sub in range(0, min(n - lo, ROWS), B):
-            b0 = lo + sub
-            m = min(n - b0, B)
-            rare = 0
+    chunks = planes.shape[0] // (8 * B)
+    per = ((n + chunks - 1) // chunks + B - 1) // B * B  # rows per chunk: whole blocks (whole words of rare_bits)
+    total = 0
+    for ch in prange(chunks):
+        prefer_wide_vectors()
+        # (the planes' accessors are builtins, without numba's wraparound of negative
+        # indices; conditionals, not min and max, which are numba overloads to compile)
+        pb = ch * (8 * B)
+        lo = ch * per
+        hi = lo + per if lo + per < n else n
+        for b0 in range(lo, hi, B):
+            m = hi - b0 if hi - b0 < B else B
+            # planes (B apart): tθ then sin tθ, v (four), ±1, rare, cos tθ
             for k in range(m):
                 th, v, sgn, r = arc_fast(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
-                pl[k] = E.load1(t, b0 + k) * th
-                pl[B + k] = v[0]
-                pl[2 * B + k] = v[1]
-                pl[3 * B + k] = v[2]
-                pl[4 * B + k] = v[3]
-                pl[5 * B + k] = like(th, 1.0) - sgn
-                pl[7 * B + k] = r
-                rare += r
-            # the few pairs arc_fast leaves to arc (nearly antipodal, identical, ties, nan), found
-            # by a search loop: a plain loop over the block with a branch was if-converted by
-            # LLVM into SIMD code that ran arc on every row of the block
-            k = 0
-            while rare:
-                while pl[7 * B + k] == 0.0:
-                    k += 1
-                th, v, sgn = arc(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)
-                pl[k] = E.load1(t, b0 + k) * th
-                pl[B + k] = v[0]
-                pl[2 * B + k] = v[1]
-                pl[3 * B + k] = v[2]
-                pl[4 * B + k] = v[3]
-                pl[5 * B + k] = like(th, 1.0) - sgn
-                k += 1
-                rare -= 1
+                E.stores_at(planes, pb + k, B, (E.load1(t, b0 + k) * th, v[0], v[1], v[2], v[3], like(th, 1.0) - sgn, r))
             for k in range(m):
-                pl[k], pl[6 * B + k] = sincos(pl[k])
+                E.stores_at(planes, pb + k, 7 * B, sincos(E.load1(planes, pb + k)))
             for k in range(m):
                 i = b0 + k
                 pi = E.load4(p, i)
                 qi = E.load4(q, i)  # loaded whatever t (a load under a branch stops LLVM's vectoriser)
-                s = pl[k]
-                c = pl[6 * B + k]
-                r = (fmuladd(s, pl[B + k], c * pi[0]), fmuladd(s, pl[2 * B + k], c * pi[1]),
-                     fmuladd(s, pl[3 * B + k], c * pi[2]), fmuladd(s, pl[4 * B + k], c * pi[3]))
+                s, v0, v1, v2, v3, sq, rare, c = E.loads_at(planes, pb + k, B, 8)
+                r = (fmuladd(s, v0, c * pi[0]), fmuladd(s, v1, c * pi[1]), fmuladd(s, v2, c * pi[2]),
+                     fmuladd(s, v3, c * pi[3]))
                 # exact end (t = 0 is exact: sincos(0) = (0, 1)); a branch, which LLVM leaves
                 # scalar: the SIMD select of slerp_row ran 1.17x faster in cache but 0.8x at
                 # 2·10⁶ rows (from memory)
                 if E.load1(t, i) == like(s, 1.0):
-                    sq = pl[5 * B + k]
                     r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
-                E.store4(out, i, r)
+                if rare == like(s, 0.0):
+                    E.store4(out, i, r)
+                else:  # a rare row keeps its input (out may be p or q), for _slerp_rare
+                    rare_bits[i >> 6] |= np.uint64(1) << np.uint64(i & 63)
+                    total += 1
+    return total
+
+
+@rowloop(parallel=False)
+def _slerp_rare(p, q, t, shortest, rare_bits, out):
+    """The rows of `rare_bits` that :func:`_slerp` left: the same rows on the exact arc of
+    :func:`quatarray._slerp.arc` (bit for bit what :func:`quatarray._slerp.slerp4` gives)."""
+    for w in range(rare_bits.shape[0]):
+        word = rare_bits[w]
+        if word:
+            for j in range(64):
+                if (word >> np.uint64(j)) & np.uint64(1):
+                    i = 64 * w + j
+                    pi = E.load4(p, i)
+                    qi = E.load4(q, i)
+                    ti = E.load1(t, i)
+                    th, v, sgn = arc(pi, qi, shortest)
+                    s, c = sincos(ti * th)
+                    r = (fmuladd(s, v[0], c * pi[0]), fmuladd(s, v[1], c * pi[1]),
+                         fmuladd(s, v[2], c * pi[2]), fmuladd(s, v[3], c * pi[3]))
+                    if ti == like(s, 1.0):
+                        sq = like(th, 1.0) - sgn
+                        r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
+                    E.store4(out, i, r)
+
+
+def _run_slerp(p, q, t, shortest, out):
+    """:func:`_slerp` on flat rows, then :func:`_slerp_rare` if it left rows."""
+    n = t.shape[0]
+    blocks = max(1, (n + SLERP_BLOCK - 1) // SLERP_BLOCK)
+    chunks = blocks if blocks <= SLERP_CHUNKS else min(blocks, SLERP_CHUNKS * numba.get_num_threads())
+    planes = np.empty(chunks * 8 * SLERP_BLOCK, out.dtype)
+    rare_bits = np.zeros((n + 63) // 64, np.uint64)
+    if _slerp(p, q, t, shortest, planes, rare_bits, out):
+        _slerp_rare(p, q, t, shortest, rare_bits, out)
 
 
 @rowloop(rows=2)
@@ -194,8 +225,9 @@ def _bezier_controls(q, f_out, f_in, a, b):
     and b_{K−1} = slerp(q_{K−1}, q_{K−2}, 1/3) (to rounding)."""
     n = f_out.shape[0]
     for blk in prange((n + ROWS - 1) // ROWS):
-        lo = max(blk * ROWS, 0)  # provably >= 0: no negative-index wraparound, so LLVM vectorises
-        for j in range(min(n - lo, ROWS)):
+        prefer_wide_vectors()
+        lo = blk * ROWS  # (the row accessors are builtins: no wraparound; no min, a numba overload)
+        for j in range(n - lo if n - lo < ROWS else ROWS):
             i = lo + j
             r = controls4(E.load4(q, i), E.load4(q, i + 1), E.load4(q, i + 2), E.load1(f_out, i), E.load1(f_in, i))
             E.store4(a, i, r[0])
@@ -392,7 +424,7 @@ def slerp(p, q, t, shortest=True, out=None):
     >>> qa.slerp(p, q, [0.0, 0.5, 1.0]).shape
     (3, 4)
     """
-    return elementwise(_flat(_slerp, 1.0 if shortest else 0.0), _pqt(p, q, t), [Q], out)
+    return elementwise(_flat(_run_slerp, 1.0 if shortest else 0.0), _pqt(p, q, t), [Q], out)
 
 
 def double(p, q, out=None):

@@ -56,8 +56,8 @@ import numpy as np
 
 from . import _cubic
 from . import _elements as E
-from ._jit import element, like, prange, rowloop, specialise
-from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_rates
+from ._jit import element, like, prange, prefer_wide_vectors, rowloop, specialise
+from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_acc_fixed, slerp_rates
 from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
@@ -218,23 +218,26 @@ def _eval(times, new_t, data, out):
     the method reads instead), and returns where it stopped and `count`. A
     method that batches its samples (the Bézier tile) has ``START(data)`` make a
     block's `state`, where `count` samples wait, stops a run when CAP are
-    waiting, and has ``FLUSH(out, state, count)`` evaluate them (called at two
-    places only, so LLVM keeps it one function)."""
+    waiting, and has ``FLUSH(out, state, count)`` evaluate them: called at one
+    place only (when CAP wait, and at the block's end), so the long chain of a
+    Bézier tile is inlined once (numba's IR inlining: no kernel of its own to compile)."""
     m = new_t.shape[0]
     for blk in prange((m + BLOCK - 1) // BLOCK):
         j = blk * BLOCK
-        hi = min(m, j + BLOCK)
+        hi = j + BLOCK if j + BLOCK < m else m  # (not min: a numba overload to compile)
         sg = 0
         state = START(data)
-        count = np.int64(0)  # not the literal 0: bezier_tile would compile for it too
-        while j < hi:
-            sg, e = next_run(times, new_t, j, hi, sg)
-            while j < e:
-                j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
-                if count == CAP:
-                    FLUSH(out, state, count)
-                    count = np.int64(0)
-        FLUSH(out, state, count)
+        count = np.int64(0)  # not the literal 0
+        while True:
+            if j < hi:
+                sg, e = next_run(times, new_t, j, hi, sg)
+                while j < e and count != CAP:
+                    j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
+            if count == CAP or j >= hi:
+                FLUSH(out, state, count)
+                count = np.int64(0)
+                if j >= hi:
+                    break
 
 
 @rowloop(inline=True)
@@ -296,28 +299,16 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
     return e, count
 
 
-@element
-def tile_q(tile, c, lane):
-    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane),
-            E.load1(tile, (c + 2) * TILE + lane), E.load1(tile, (c + 3) * TILE + lane))
-
-
-@element
-def tile_arc(tile, c, lane):
-    return (E.load1(tile, c * TILE + lane), E.load1(tile, (c + 1) * TILE + lane), E.load1(tile, (c + 2) * TILE + lane),
-            E.load1(tile, (c + 3) * TILE + lane), E.load1(tile, (c + 4) * TILE + lane))
-
-
-@rowloop(parallel=False)
+@rowloop(inline=True)
 def bezier_tile(out, state, count):
     """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
     SIMD over its lanes, into `res` column by column), then store them in their rows of
-    `out`. The FLUSH of the Bézier method: a kernel of its own, called at _eval's two
-    places (one copy of the long de Casteljau chain)."""
+    `out`. The FLUSH of the Bézier method, inlined at _eval's one place (one copy of the
+    long de Casteljau chain)."""
     tile, u, res, rows = state
     for lane in range(count):
-        r = bezier_seg(tile_q(tile, 0, lane), tile_q(tile, 4, lane), tile_q(tile, 8, lane), tile_q(tile, 12, lane),
-                       tile_arc(tile, 16, lane), tile_arc(tile, 21, lane), tile_arc(tile, 26, lane), E.load1(u, lane))
+        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+        r = bezier_seg(col[0:4], col[4:8], col[8:12], col[12:16], col[16:21], col[21:26], col[26:31], E.load1(u, lane))
         E.store1(res, lane, r[0])
         E.store1(res, TILE + lane, r[1])
         E.store1(res, 2 * TILE + lane, r[2])
@@ -341,13 +332,69 @@ def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
     tile, u, res, rows = state
     i = j
     while i < e and count < TILE:
-        for c in range(NSEG):
-            tile[c * TILE + count] = seg[n + c]
+        E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
         u[count] = like(x0, (new_t[i] - t0) / h)
         rows[count] = i
         count += 1
         i += 1
     return i, count
+
+
+def run_bezier_rates(times, new_t, seg, out, sg, j, e, state, count):
+    """:func:`run_bezier` for the rates: each waiting sample's 1/h or 1/h² (``ORDER``
+    1, 2) too, in the fourth plane of the tile's results."""
+    t0, h, n, x0 = _segment(times, seg, sg)
+    tile, u, res, rows = state
+    inv_h = like(x0, 1.0 / h)
+    scale = inv_h if ORDER == 1 else inv_h * inv_h
+    i = j
+    while i < e and count < TILE:
+        E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
+        u[count] = like(x0, (new_t[i] - t0) / h)
+        res[3 * TILE + count] = scale
+        rows[count] = i
+        count += 1
+        i += 1
+    return i, count
+
+
+def bezier_rate_tile(out, state, count):
+    """The FLUSH of the Bézier rates (``ORDER`` 1 angular velocity, 2 acceleration; `out`
+    flat (3m,)): the rules of :func:`_run_rates` (``KIND`` 1) on the samples waiting in
+    a tile (see :func:`bezier_tile`), SIMD over its lanes, with 512-bit vectors where
+    the CPU has them (:func:`quatarray._jit.prefer_wide_vectors`). Bit for bit the
+    run-by-run loop's numbers, which ran as SIMD only over the samples of one segment
+    (a run of four was one 256-bit vector, of three or five scalar code)."""
+    prefer_wide_vectors()
+    tile, u, res, rows = state
+    for lane in range(count):
+        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+        q0, a, b, q1 = col[0:4], col[4:8], col[8:12], col[12:16]
+        c0, c1, c2 = col[16:21], col[21:26], col[26:31]
+        ul = E.load1(u, lane)
+        x0 = like(ul, 0.0)
+        one = like(ul, 1.0)
+        w0 = arc_rotvec(q0, c0[0], (c0[1], c0[2], c0[3], c0[4]))
+        w1 = arc_rotvec(a, c1[0], (c1[1], c1[2], c1[3], c1[4]))
+        w2 = arc_rotvec(b, c2[0], (c2[1], c2[2], c2[3], c2[4]))
+        p01 = arc_slerp(q0, a, c0, ul)
+        p12 = arc_slerp(a, b, c1, ul)
+        p23 = arc_slerp(b, q1, c2, ul)
+        if ORDER == 1:
+            s012, w012, _x = slerp_rates(p01, w0, p12, w1, ul, one)
+            s123, w123, _x = slerp_rates(p12, w1, p23, w2, ul, one)
+            v = slerp_rates(s012, w012, s123, w123, ul, one)[1]
+        else:
+            s012, w012, g012 = slerp_acc_fixed(p01, w0, p12, w1, ul, one, x0)
+            s123, w123, g123 = slerp_acc_fixed(p12, w1, p23, w2, ul, one, x0)
+            v = slerp_acc(s012, w012, g012, s123, w123, g123, ul, one, x0)[2]
+        scale = E.load1(res, 3 * TILE + lane)
+        E.store1(res, lane, v[0] * scale)
+        E.store1(res, TILE + lane, v[1] * scale)
+        E.store1(res, 2 * TILE + lane, v[2] * scale)
+    for lane in range(count):
+        for c in range(3):
+            out[3 * rows[lane] + c] = res[c * TILE + lane]
 
 
 # Sorted new times of more than PIECES_MIN_KEYS keys go through the table piece by
@@ -359,7 +406,9 @@ def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
 # compiles less (0.3 s for Bézier) and sorted and unsorted calls share it.
 PIECE_SAMPLES = 4096
 PIECES_MIN_KEYS = 4097
-_segments_1 = _eval_1 = None  # bound in each method's copy (_PIECES)
+_segments_1 = _eval_1 = None  # bound in each method's copy (_PIECES, _RATE_PIECES)
+WIDTH = 4  # floats per sample of `out`: 4 (the curve), 3 (its rates); rebound with _eval_1
+ZEROED = False  # whether a piece's table starts as zeros (rates of a method with fewer than three arcs)
 
 
 @element
@@ -379,11 +428,12 @@ def seg_index(times, t):
 def _spline_pieces(times, new_t, q, c_out, c_in, out):
     """:func:`spline`'s table and evaluation for sorted `new_t`, piece by piece.
 
-    `out` flat (4m,); ``_segments_1`` and ``_eval_1`` are the serial table and
+    `out` flat (WIDTH·m,); ``_segments_1`` and ``_eval_1`` are the serial table and
     evaluation loops of the method (one compiled copy per method, see
-    ``_PIECES``). Samples are assigned to segments as in the whole table (a
-    piece's last segment ends before the next piece's first sample, except the
-    stream's last segment, which includes times[K−1]).
+    ``_PIECES``; for the rates, ``_RATE_PIECES``, the rate loop of an order).
+    Samples are assigned to segments as in the whole table (a piece's last
+    segment ends before the next piece's first sample, except the stream's last
+    segment, which includes times[K−1]).
     """
     m = new_t.shape[0]
     for p in prange((m + PIECE_SAMPLES - 1) // PIECE_SAMPLES):
@@ -391,9 +441,12 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
         j1 = min(m, j0 + PIECE_SAMPLES)
         s0 = seg_index(times, new_t[j0])
         s1 = seg_index(times, new_t[j1 - 1]) + 1
-        seg = np.empty((s1 - s0, NSEG), out.dtype)
+        if ZEROED:  # the rate loops read every arc column (a method's unused ones as zeros)
+            seg = np.zeros((s1 - s0, NSEG), out.dtype)
+        else:
+            seg = np.empty((s1 - s0, NSEG), out.dtype)
         _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], seg)
-        _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[4 * j0 : 4 * j1])
+        _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[WIDTH * j0 : WIDTH * j1])
 
 
 # ---- the rates of the curves (order 1, 2) and the cubic spline
@@ -446,7 +499,7 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
             if ORDER == 1:
                 v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
             else:
-                v = slerp_acc(pq, w0, zero3, ps, w1, zero3, w, dw, like(x0, -4.0))[2]
+                v = slerp_acc_fixed(pq, w0, ps, w1, w, dw, like(x0, -4.0))[2]
         if KIND == 1:
             p01 = arc_slerp(q0, a, E.loads(seg, n + 16, 5), u)
             p12 = arc_slerp(a, b, E.loads(seg, n + 21, 5), u)
@@ -456,8 +509,8 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
                 s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
                 v = slerp_rates(s012, w012, s123, w123, u, one)[1]
             else:
-                s012, w012, g012 = slerp_acc(p01, w0, zero3, p12, w1, zero3, u, one, x0)
-                s123, w123, g123 = slerp_acc(p12, w1, zero3, p23, w2, zero3, u, one, x0)
+                s012, w012, g012 = slerp_acc_fixed(p01, w0, p12, w1, u, one, x0)
+                s123, w123, g123 = slerp_acc_fixed(p12, w1, p23, w2, u, one, x0)
                 v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
         E.store1(out, 3 * i, v[0] * scale)
         E.store1(out, 3 * i + 1, v[1] * scale)
@@ -697,7 +750,7 @@ def _unit_unflip(p, out, a, flip0):
     # the sign of unflip_sign (−1 negate, 1 keep, 0: a zero or nan row) in place of the
     # dot product's (the tie rule of quatarray._slerp)
     for base in range(0, p.shape[0], UNIT_BLOCK):
-        m = min(UNIT_BLOCK, p.shape[0] - base)
+        m = UNIT_BLOCK if UNIT_BLOCK < p.shape[0] - base else p.shape[0] - base  # (not min: an overload)
         i0 = a + base
         for k in range(m):
             E.store4(out, i0 + k, E.qnormalize(E.load4(p, base + k)))
@@ -730,7 +783,9 @@ def resample_unit(t, nt, q, method, order=0):
     m = flat_nt.shape[0]
     if order:  # the whole table (zeros: the rate loops read every arc column), then the rate loop
         out = np.empty((m, 3), q.dtype)
-        if m:
+        if k >= PIECES_MIN_KEYS and m > 1 and (flat_nt[1:] >= flat_nt[:-1]).all():
+            _RATE_PIECES[method, order](t, flat_nt, q, c_out, c_in, out.reshape(-1))
+        elif m:
             seg = np.zeros((k - 1, NSEG), q.dtype)
             _SEGMENTS[method](q, c_out, c_in, seg)
             _RATES[method, order](t, flat_nt, seg.reshape(-1), out.reshape(-1))
@@ -795,9 +850,22 @@ _PIECES = {
                                      _segments_1=_SEGMENTS[name].serial))
     for name, m in TABLED.items()
 }
-# order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table
+# order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table;
+# the Bézier rates in tiles, as its values (their chain is the longest)
 _RATES = {(name, order): _eval_of(f"_rates_{name}_{order}",
                                   rowloop(specialise(_run_rates, f"_{name}_{order}", KIND=m.kind, ORDER=order), inline=True))
-          for name, m in TABLED.items() for order in (1, 2)}
+          for name, m in TABLED.items() if name != "bezier" for order in (1, 2)}
+for _order in (1, 2):
+    _RATES["bezier", _order] = _eval_of(
+        f"_rates_bezier_{_order}", rowloop(specialise(run_bezier_rates, f"_{_order}", ORDER=_order), inline=True),
+        start_bezier, rowloop(specialise(bezier_rate_tile, f"_{_order}", ORDER=_order), inline=True), TILE)
+# the rates of sorted new times over many keys, piece by piece as _PIECES (the rate loop
+# on each piece's table: a table that stays in cache, built in parallel)
+_RATE_PIECES = {
+    (name, order): rowloop(rows=1)(specialise(_spline_pieces, f"_rates_{name}_{order}",
+                                              _eval_1=_RATES[name, order].serial,
+                                              _segments_1=_SEGMENTS[name].serial, WIDTH=3, ZEROED=m.kind != 1))
+    for name, m in TABLED.items() for order in (1, 2)
+}
 _EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", element(specialise(_run_cubic, f"_{order}", ORDER=order)))
                for order in (0, 1, 2)}

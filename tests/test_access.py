@@ -8,7 +8,8 @@ import pytest
 from numba.core.errors import TypingError
 
 from compile_events import compiles
-from quatarray._access import load1, load3, load4, load33, loads, store1, store3, store33, store4, stores
+from quatarray._access import (load1, load3, load4, load33, loads, loads_at, store1, store3, store33, store4,
+                               stores, stores_at)
 
 JIT = os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
 
@@ -27,6 +28,14 @@ def _table_rows(seg, out):
     for n in range(seg.shape[0]):
         row = loads(seg, 7 * n, 7)
         stores(out, 7 * n, (row[6], row[5], row[4], row[3], row[2], row[1], row[0]))
+
+
+@numba.njit
+def _plane_columns(planes, out, step):
+    """Column k of 5 planes `step` apart, reversed, into the same column of `out`."""
+    for k in range(step):
+        col = loads_at(planes, k, step, 5)
+        stores_at(out, k, step, (col[4], col[3], col[2], col[1], col[0] * 2))
 
 
 def _layouts(a):
@@ -69,6 +78,17 @@ def test_table_rows_load_and_store():
     np.testing.assert_array_equal(out, seg[:, ::-1])
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_plane_columns_load_and_store(dtype):
+    """loads_at / stores_at: one lane's column of planes laid side by side (a tile)."""
+    planes = np.arange(5 * 6, dtype=dtype)
+    out = np.full(5 * 6, np.nan, dtype)
+    _plane_columns(planes, out, 6)
+    want = planes.reshape(5, 6)[::-1].copy()
+    want[4] *= 2
+    np.testing.assert_array_equal(out.reshape(5, 6), want)
+
+
 @pytest.mark.skipif(not JIT, reason="typing and compiling need the JIT")
 def test_a_store_into_a_read_only_array_does_not_type():
     ro = np.zeros((3, 4))
@@ -93,6 +113,7 @@ def test_the_accessors_compile_nothing_of_their_own():
             store3(out3, i, load3(v, i))
             store1(out1, i, load1(s, i))
         stores(out_seg, 0, loads(seg, 0, 5))
+        stores_at(out_seg, 0, 2, loads_at(seg, 1, 2, 2))
 
     args = (np.zeros((4, 4), np.float32), np.zeros((4, 3), np.float32), np.zeros(4, np.float32), np.zeros(5),
             np.empty((4, 4), np.float32), np.empty((4, 3), np.float32), np.empty(4, np.float32), np.empty(5))

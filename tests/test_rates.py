@@ -208,3 +208,33 @@ def test_rate_loops_vectorise_over_a_segments_samples(rng, method, order):
     fresh = numba.njit(cache=False, error_model="numpy")(loop.py_func)  # cached code has no IR to see
     fresh.compile(sig)
     assert re.search(r"= fmul (?:\w+ )*<\d+ x double>", fresh.inspect_llvm(sig)), "the rate loop did not vectorise"
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_rates_in_pieces_and_tiles_equal_the_whole_table(rng, dtype, monkeypatch):
+    """Sorted new times over many keys take the rates piece by piece (each piece's own
+    table) and the Bézier rates come in SIMD tiles of samples from any segments: both
+    give the whole table's numbers (unsorted new times, the same times reversed) bit
+    for bit, for every table method and both orders, with segments of one sample, of
+    a few and of many, and the key times themselves."""
+    from quatarray import splines
+
+    monkeypatch.setattr(splines, "PIECES_MIN_KEYS", 2)
+    k = 600
+    times = np.cumsum(rng.uniform(0.2, 2.0, k))
+    keys = (smooth_keys(rng, k, 0.4) * rng.choice([-1, 1], k)[:, None]).astype(dtype)
+    counts = rng.choice([0, 1, 2, 3, 4, 5, 9, 70], k - 1)
+    new = np.concatenate([times[n] + (times[n + 1] - times[n]) * rng.uniform(0, 1, c)
+                          for n, c in enumerate(counts)] + [times])
+    new = np.sort(new)
+    called = []
+    pieces = dict(splines._RATE_PIECES)
+    for key in pieces:
+        monkeypatch.setitem(splines._RATE_PIECES, key, lambda *a, key=key: called.append(key) or pieces[key](*a))
+    for method in ("bezier", "slerp", "nlerp", "squad"):
+        for order in (1, 2):
+            got = qa.spline(times, keys, new, method=method, order=order)
+            assert got.dtype == dtype and np.isfinite(got).all()
+            whole = qa.spline(times, keys, new[::-1], method=method, order=order)[::-1]
+            np.testing.assert_array_equal(got, whole)
+    assert called == [(m, o) for m in ("bezier", "slerp", "nlerp", "squad") for o in (1, 2)]

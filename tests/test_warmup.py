@@ -209,6 +209,20 @@ def test_table_reaches_the_spline_piece_kernels(monkeypatch):
     assert seen == [m for m in splines._PIECES for _ in range(2)]  # float64 and float32 times
 
 
+def test_table_reaches_the_spline_rate_piece_kernels(monkeypatch):
+    """The rates of sorted new times over many keys take the rate piece kernels: the
+    table's "many keys, order=…" entries reach each of them."""
+    from quatarray import splines
+
+    seen = []
+    for key in splines._RATE_PIECES:
+        monkeypatch.setitem(splines._RATE_PIECES, key, lambda *a, k=key: seen.append(k))
+    s = _warmup._samples("float64")
+    for method, order in splines._RATE_PIECES:
+        _warmup.TABLE[f"spline[{method}, many keys, order={order}]"](qa, s)
+    assert seen == [k for k in splines._RATE_PIECES for _ in range(2)]  # float64 and float32 times
+
+
 def test_bad_arguments():
     with pytest.raises(ValueError, match="dtype"):
         qa.warmup(dtype="float16")
