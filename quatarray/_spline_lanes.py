@@ -197,7 +197,7 @@ def _lane_eval(keys, arcs, t, count, res):
         store_lane(res, 0, l, v)
 
 
-lane_arcs = lane_eval = None  # bound in each method's copy of _lane_spline
+LANE_ARCS = LANE_EVAL = None  # bound in each method's copy of _lane_spline
 
 
 def _lane_spline(times, new_t, q, c_out, c_in, cols, nj, out):
@@ -235,9 +235,9 @@ def _lane_spline(times, new_t, q, c_out, c_in, cols, nj, out):
                     keys[G4 + c] = c_out[b0 + c]
                     keys[2 * G4 + c] = c_in[b1 + c]
                     keys[3 * G4 + c] = q[b1 + c]
-                lane_arcs(keys, vec, arcs)
+                LANE_ARCS(keys, vec, arcs)
                 for i in range(j, e):
-                    lane_eval(keys, arcs, like(x0, (new_t[i] - t0) / h), vec, res)
+                    LANE_EVAL(keys, arcs, like(x0, (new_t[i] - t0) / h), vec, res)
                     for l in range(count):
                         o = 4 * (i * nj + cols[g * LANES + l])
                         out[o] = res[l]
@@ -250,8 +250,8 @@ def _lane_spline(times, new_t, q, c_out, c_in, cols, nj, out):
 # multi-threaded by the size of `out` (4 per joint-sample): a sample costs one evaluation per stream
 _LANE_SPLINE = {
     name: rowloop(rows=7)(specialise(_lane_spline, f"_{name}",
-                                     lane_arcs=rowloop(specialise(_lane_arcs, f"_{name}", KIND=m.kind), parallel=False),
-                                     lane_eval=rowloop(specialise(_lane_eval, f"_{name}", KIND=m.kind), parallel=False)))
+                                     LANE_ARCS=rowloop(specialise(_lane_arcs, f"_{name}", KIND=m.kind), parallel=False),
+                                     LANE_EVAL=rowloop(specialise(_lane_eval, f"_{name}", KIND=m.kind), parallel=False)))
     for name, m in TABLED.items()
 }
 

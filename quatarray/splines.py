@@ -206,8 +206,8 @@ def seg_keys(seg, n):
 # values once into scalars and its inner loop over the run's samples -- loads
 # of u, polynomial trig, flat stores -- runs as SIMD.
 
-START = RUN = FLUSH = None  # bound in each copy of _eval (see _eval_of)
-CAP = -1
+START = RUN = FLUSH = None  # rebound in each copy of _eval (the tables of _eval_of)
+CAP = -1  # samples a tile of FLUSH holds (-1: no tiles); rebound with START, RUN, FLUSH
 
 
 def _eval(times, new_t, data, out):
@@ -406,8 +406,8 @@ def bezier_rate_tile(out, state, count):
 # compiles less (0.3 s for Bézier) and sorted and unsorted calls share it.
 PIECE_SAMPLES = 4096
 PIECES_MIN_KEYS = 4097
-_segments_1 = _eval_1 = None  # bound in each method's copy (_PIECES, _RATE_PIECES)
-WIDTH = 4  # floats per sample of `out`: 4 (the curve), 3 (its rates); rebound with _eval_1
+SEGMENT_LOOP = EVAL_LOOP = None  # bound in each method's copy (_PIECES, _RATE_PIECES)
+WIDTH = 4  # floats per sample of `out`: 4 (the curve), 3 (its rates); rebound with EVAL_LOOP
 ZEROED = False  # whether a piece's table starts as zeros (rates of a method with fewer than three arcs)
 
 
@@ -428,7 +428,7 @@ def seg_index(times, t):
 def _spline_pieces(times, new_t, q, c_out, c_in, out):
     """:func:`spline`'s table and evaluation for sorted `new_t`, piece by piece.
 
-    `out` flat (WIDTH·m,); ``_segments_1`` and ``_eval_1`` are the serial table and
+    `out` flat (WIDTH·m,); ``SEGMENT_LOOP`` and ``EVAL_LOOP`` are the serial table and
     evaluation loops of the method (one compiled copy per method, see
     ``_PIECES``; for the rates, ``_RATE_PIECES``, the rate loop of an order).
     Samples are assigned to segments as in the whole table (a piece's last
@@ -445,8 +445,8 @@ def _spline_pieces(times, new_t, q, c_out, c_in, out):
             seg = np.zeros((s1 - s0, NSEG), out.dtype)
         else:
             seg = np.empty((s1 - s0, NSEG), out.dtype)
-        _segments_1(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], seg)
-        _eval_1(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[WIDTH * j0 : WIDTH * j1])
+        SEGMENT_LOOP(q[s0 : s1 + 1], c_out[s0 : s1 + 1], c_in[s0 : s1 + 1], seg)
+        EVAL_LOOP(times[s0 : s1 + 1], new_t[j0:j1], seg.reshape(-1), out[WIDTH * j0 : WIDTH * j1])
 
 
 # ---- the rates of the curves (order 1, 2) and the cubic spline
@@ -846,8 +846,8 @@ TABLED = {name: m for name, m in _METHODS.items() if m.resample is None}
 _EVALS = {name: _eval_of(f"_{name}", m.run, m.start, m.flush, m.cap) for name, m in TABLED.items()}
 _SEGMENTS = {name: rowloop(rows=3)(specialise(_segments, f"_{name}", KIND=m.kind)) for name, m in TABLED.items()}
 _PIECES = {
-    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", _eval_1=_EVALS[name].serial,
-                                     _segments_1=_SEGMENTS[name].serial))
+    name: rowloop(rows=1)(specialise(_spline_pieces, f"_{name}", EVAL_LOOP=_EVALS[name].serial,
+                                     SEGMENT_LOOP=_SEGMENTS[name].serial))
     for name, m in TABLED.items()
 }
 # order 1 and 2 of the table methods: one rate loop per (method, order), on the whole table;
@@ -863,8 +863,8 @@ for _order in (1, 2):
 # on each piece's table: a table that stays in cache, built in parallel)
 _RATE_PIECES = {
     (name, order): rowloop(rows=1)(specialise(_spline_pieces, f"_rates_{name}_{order}",
-                                              _eval_1=_RATES[name, order].serial,
-                                              _segments_1=_SEGMENTS[name].serial, WIDTH=3, ZEROED=m.kind != 1))
+                                              EVAL_LOOP=_RATES[name, order].serial,
+                                              SEGMENT_LOOP=_SEGMENTS[name].serial, WIDTH=3, ZEROED=m.kind != 1))
     for name, m in TABLED.items() for order in (1, 2)
 }
 _EVAL_CUBIC = {order: _eval_of(f"_cubic_{order}", element(specialise(_run_cubic, f"_{order}", ORDER=order)))
