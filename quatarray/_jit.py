@@ -785,17 +785,17 @@ class FarRows:
         @element
         def _norm_plain(i, args):
             q, out = args
-            a = load4(q, i)
-            n2 = qdot(a, a)
+            a = E.load4(q, i)
+            n2 = E.qdot(a, a)
             out[i] = np.sqrt(n2)
-            return far_scale(n2)
+            return E.far_scale(n2)
 
         @element
         def _norm_scaled(i, args):
             q, out = args
-            a = load4(q, i)
-            if far_scale(qdot(a, a)):
-                out[i] = qnorm(a)
+            a = E.load4(q, i)
+            if E.far_scale(E.qdot(a, a)):
+                out[i] = E.qnorm(a)
     """
 
     # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
