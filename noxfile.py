@@ -7,6 +7,13 @@ Sessions
 ``floor``
     Every minimum that ``pyproject.toml`` declares (the project's dependencies and
     its ``test`` extra) pinned exactly, on the oldest CPython it supports.
+``mid-numba0.61`` (Python 3.10), ``mid-numba0.62`` (Python 3.11)
+    Two cells between the floor and the newest: numba, numpy, scipy and pyarrow
+    pinned to a release series each (``MIDDLE`` below), the rest newest.
+
+``python -m nox`` runs the whole matrix (seven cells, one after the other; about
+an hour and a half on 2 cores, most of it numba compiling into each cell's empty
+cache); ``python -m nox -l`` lists them.
 
 Arguments after ``--`` go to pytest in place of the default ``-n auto`` (the whole
 suite): ``python -m nox -s floor -- tests/test_io.py -n 2``. The CPythons are found
@@ -27,7 +34,13 @@ PYTHONS = ["3.10", "3.11", "3.12", "3.13"]
 OLDEST = PYTHONS[0]
 
 nox.options.error_on_missing_interpreters = True
-nox.options.sessions = [f"tests-{p}" for p in PYTHONS] + ["floor"]
+# pinned release series between the floor and the newest: (cell, CPython, pins)
+MIDDLE = [
+    ("mid-numba0.61", "3.10", ["numba==0.61.*", "numpy==2.1.*", "scipy==1.14.*", "pyarrow==22.*"]),
+    ("mid-numba0.62", "3.11", ["numba==0.62.*", "numpy==2.2.*", "scipy==1.14.*", "pyarrow==18.*"]),
+]
+
+nox.options.sessions = [f"tests-{p}" for p in PYTHONS] + ["floor"] + [name for name, _, _ in MIDDLE]
 
 
 def _add_pyenv_pythons():
@@ -87,8 +100,26 @@ def tests(session):
 @nox.session(python=OLDEST)
 def floor(session):
     """Every declared minimum pinned, on the oldest CPython."""
-    constraints = pathlib.Path(session.create_tmp()) / "floor.txt"
-    constraints.write_text("\n".join(_minimums()) + "\n")
-    session.log("floor pins: " + ", ".join(_minimums()))
-    session.install("-c", str(constraints), ".[test]")
+    _pinned(session, _minimums(), "floor")
     _pytest(session)
+
+
+def _pinned(session, pins, label):
+    """Install the project and its ``test`` extra with `pins` as pip constraints."""
+    constraints = pathlib.Path(session.create_tmp()) / f"{label}.txt"
+    constraints.write_text("\n".join(pins) + "\n")
+    session.log(f"{label} pins: " + ", ".join(pins))
+    session.install("-c", str(constraints), ".[test]")
+
+
+def _middle_session(name, python, pins):
+    def middle(session):
+        _pinned(session, pins, name)
+        _pytest(session)
+
+    middle.__doc__ = f"numba, numpy, scipy, pyarrow pinned ({', '.join(pins)}), the rest newest."
+    return nox.session(name=name, python=python)(middle)
+
+
+for _name, _python, _pins in MIDDLE:
+    globals()[_name.replace("-", "_").replace(".", "_")] = _middle_session(_name, _python, _pins)

@@ -97,6 +97,23 @@ def _scalar_first():
     return _SCALAR_FIRST[0]
 
 
+_ND_STACKS = []  # [bool]: scipy's Rotation holds stacks of any dimension, (..., 4) (scipy >= 1.17)
+
+
+def scipy_nd_stacks():
+    """True where scipy's ``Rotation`` takes quaternions of shape (..., 4) with more
+    than one leading axis; older releases take (4,) and (N, 4) only."""
+    if not _ND_STACKS:
+        from scipy.spatial.transform import Rotation
+
+        try:
+            Rotation.from_quat(np.array([[[0.0, 0.0, 0.0, 1.0]]]))
+            _ND_STACKS.append(True)
+        except ValueError:
+            _ND_STACKS.append(False)
+    return _ND_STACKS[0]
+
+
 def rotation_from_wxyz(q):
     """``scipy.spatial.transform.Rotation.from_quat(q, scalar_first=True)``, also on
     scipy < 1.14 (which takes (x, y, z, w) only)."""

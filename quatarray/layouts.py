@@ -14,7 +14,7 @@ like numpy; float32 stays float32 and float64 stays float64.
 import numpy as np
 
 from . import _elements as E
-from ._compat import rotation_as_wxyz, rotation_from_wxyz
+from ._compat import rotation_as_wxyz, rotation_from_wxyz, scipy_nd_stacks
 from ._jit import element, like, prange, prefer_no_gather, rowloop
 from ._validate import as_float, check_core, elementwise, refuse_masked, shape_error
 
@@ -155,6 +155,11 @@ def to_scipy(q):
     array([0. , 0. , 0.5])
     """
     a = check_core(as_float(q, "q"), "q", Q)
+    if a.ndim > 2 and not scipy_nd_stacks():
+        import scipy
+
+        raise ValueError(f"Expected `q` to have shape (4,) or (N, 4), got {a.shape}: scipy {scipy.__version__}'s "
+                         "Rotation holds no stacks of more dimensions (scipy 1.17 and later do).")
     return rotation_from_wxyz(a)
 
 

@@ -79,6 +79,10 @@ def _scipy_rotation_refused(exc):
     if isinstance(exc, ValueError) and _raised_in_scipy_rotation(exc):
         import scipy
 
+        from quatarray._compat import scipy_nd_stacks
+
+        if "to have shape (4,) or (N, 4)" in str(exc) and not scipy_nd_stacks():
+            return True  # the oracle is a stack of more dimensions (scipy 1.17)
         # before 1.14 Rotation took fewer shapes (align_vectors of one pair of (3,) vectors)
         return tuple(int(x) for x in scipy.__version__.split(".")[:2]) < (1, 14)
     return any(_scipy_rotation_refused(e) for e in getattr(exc, "exceptions", ()))

@@ -468,4 +468,7 @@ def test_one_two_axes_are_products_of_elementary_turns(seq, angles):
         want = qa.multiply(want, t) if seq.isupper() else qa.multiply(t, want)
     got = qa.from_euler(seq, angles[: len(seq)])
     assert qa.distance(got, want) < 1e-12
-    np.testing.assert_allclose(got, R.from_euler(seq, angles[: len(seq)]).as_quat(scalar_first=True), atol=1e-14)
+    want = R.from_euler(seq, angles[: len(seq)]).as_quat(scalar_first=True)
+    if len(seq) == 1 and want.shape == (1, 4):
+        want = want[0]  # an older scipy (1.14, 1.15): one axis, its angle in a list, give a stack of one
+    np.testing.assert_allclose(got, want, atol=1e-14)

@@ -36,6 +36,21 @@ def test_xyzw_and_scipy_interop(rng):
     assert qa.from_xyzw(b, out=b) is b and np.array_equal(b, q)
 
 
+def test_to_scipy_of_a_stack(rng, monkeypatch):
+    """(..., 4) with several leading axes: a Rotation of that shape where scipy has such
+    stacks (1.17), else an error naming `q` and the scipy release."""
+    from quatarray import _compat
+
+    q = qa.random((2, 3), rng)
+    if _compat.scipy_nd_stacks():
+        r = qa.to_scipy(q)
+        assert r.shape == (2, 3) and np.allclose(qa.from_scipy(r), q, atol=1e-15)
+    monkeypatch.setattr(_compat, "_ND_STACKS", [False])
+    with pytest.raises(ValueError, match=r"Expected `q` to have shape \(4,\) or \(N, 4\), got \(2, 3, 4\): scipy"):
+        qa.to_scipy(q)
+    assert len(qa.to_scipy(q[0])) == 3  # (N, 4) as ever
+
+
 def test_left_right_matrices(rng):
     p, q = rng.standard_normal((200, 4)), rng.standard_normal((200, 4))
     L, Rm = qa.as_left_matrix(q), qa.as_right_matrix(q)

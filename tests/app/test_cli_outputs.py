@@ -132,11 +132,12 @@ def test_signals_leave_nothing_behind(tmp_path, sig, code):
 
     np.save(tmp_path / "k.npy", unit(np.random.default_rng(9), 20))
     out = tmp_path / "o.npy"
-    # SIGINT's default (KeyboardInterrupt) only where it is not ignored, as it is under `cmd &`
+    # SIGINT's default (KeyboardInterrupt) only where it is not ignored, as it is under `cmd &`;
+    # SIGHUP's likewise (ignored under nohup, which the program honours)
     proc = subprocess.Popen(
         [sys.executable, "-m", "quatarray", "resample", str(tmp_path / "k.npy"), str(out), "--in-rate", "1",
          "--rate", "1e7", "--chunk", "10000", "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL) for s in (signal.SIGINT, signal.SIGHUP)],
     )
     try:
         deadline = time.monotonic() + 120
