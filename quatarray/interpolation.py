@@ -17,6 +17,7 @@ Internal API (no checks; for :mod:`quatarray.splines`, on unit keys of shape (K,
 """
 
 import math
+import threading
 
 import numba
 import numpy as np
@@ -140,9 +141,28 @@ def _slerp_rare(p, q, t, shortest, rare_bits, out):
                     E.store4(out, i, r)
 
 
+_SCRATCH = threading.local()  # each thread's planes and rare bits for calls of one block (see _run_slerp)
+
+
 def _run_slerp(p, q, t, shortest, out):
-    """:func:`_slerp` on flat rows, then :func:`_slerp_rare` if it left rows."""
+    """:func:`_slerp` on flat rows, then :func:`_slerp_rare` if it left rows.
+
+    A call of one block (at most SLERP_BLOCK rows: one chunk, the serial loop) takes
+    its planes and rare bits from its thread's scratch, which it holds (takes out)
+    while it runs, so that no two calls ever share them, and gives back with the bits
+    zero: allocating them was a sixth of a small call's time. Larger calls allocate."""
     n = t.shape[0]
+    if n <= SLERP_BLOCK:
+        scratch = _SCRATCH.__dict__
+        key = out.dtype.char
+        bufs = scratch.pop(key, None)
+        if bufs is None:
+            bufs = (np.empty(8 * SLERP_BLOCK, out.dtype), np.zeros(SLERP_BLOCK // 64, np.uint64))
+        if _slerp.serial(p, q, t, shortest, bufs[0], bufs[1], out):
+            _slerp_rare(p, q, t, shortest, bufs[1], out)
+            bufs[1][:] = 0
+        scratch[key] = bufs
+        return
     blocks = max(1, (n + SLERP_BLOCK - 1) // SLERP_BLOCK)
     chunks = blocks if blocks <= SLERP_CHUNKS else min(blocks, SLERP_CHUNKS * numba.get_num_threads())
     planes = np.empty(chunks * 8 * SLERP_BLOCK, out.dtype)

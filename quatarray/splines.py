@@ -71,6 +71,17 @@ BLOCK = 2048  # samples per block of the segment search
 # loop for long runs in one segment was no faster, and doubled its compile time).
 TILE = 64
 NSEG = 31  # floats per row of a spline's segment table: 4 quaternions, 3 arcs
+# A tile is one float array (start_bezier): its samples' table rows as TILE columns
+# (NSEG planes of TILE), then their u (a plane at U), then their results (four planes
+# from RES; the rates' fourth: each sample's 1/h or 1/h²). Every access is at a constant
+# distance from one base, so LLVM proves the loops free of overlaps: the lane loop has no
+# scalar copy for overlapping arrays beside its SIMD one (the long chain compiled once).
+U = NSEG * TILE
+RES = U + TILE
+TILE_FLOATS = RES + 4 * TILE
+# The lanes are evaluated in groups of LANES (a constant trip count: SIMD with no scalar
+# remainder loop), the last group filled with copies of lane 0 (their results not used).
+LANES = 16
 
 
 @rowloop(parallel=False)
@@ -218,7 +229,8 @@ def _eval(times, new_t, data, out):
     the method reads instead), and returns where it stopped and `count`. A
     method that batches its samples (the Bézier tile) has ``START(data)`` make a
     block's `state`, where `count` samples wait, stops a run when CAP are
-    waiting, and has ``FLUSH(out, state, count)`` evaluate them: called at one
+    waiting, and has ``FLUSH(out, state, count, j)`` evaluate them (samples
+    j − count … j − 1: a block's samples wait in their order): called at one
     place only (when CAP wait, and at the block's end), so the long chain of a
     Bézier tile is inlined once (numba's IR inlining: no kernel of its own to compile)."""
     m = new_t.shape[0]
@@ -234,7 +246,7 @@ def _eval(times, new_t, data, out):
                 while j < e and count != CAP:
                     j, count = RUN(times, new_t, data, out, sg, j, e, state, count)
             if count == CAP or j >= hi:
-                FLUSH(out, state, count)
+                FLUSH(out, state, count, j)
                 count = np.int64(0)
                 if j >= hi:
                     break
@@ -246,7 +258,7 @@ def no_state(data):
 
 
 @rowloop(inline=True)
-def no_flush(out, state, count):
+def no_flush(out, state, count, j):
     return None
 
 
@@ -300,65 +312,71 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
 
 
 @rowloop(inline=True)
-def bezier_tile(out, state, count):
-    """Evaluate the `count` samples waiting in a tile (``state``, see :func:`start_bezier`:
-    SIMD over its lanes, into `res` column by column), then store them in their rows of
+def pad_tile(tile, count):
+    """The lanes count … of the tile's last group of LANES (when count is not a whole
+    number of groups): copies of lane 0 (u and the rates' scale with it), so that the
+    groups compute on real rows; their results are not used. Returns the groups."""
+    groups = (count + LANES - 1) // LANES
+    for lane in range(count, groups * LANES):
+        E.stores_at(tile, lane, TILE, E.loads_at(tile, 0, TILE, NSEG))
+        tile[U + lane] = tile[U]
+        tile[RES + 3 * TILE + lane] = tile[RES + 3 * TILE]
+    return groups
+
+
+@rowloop(inline=True)
+def bezier_tile(out, tile, count, j):
+    """Evaluate the `count` samples waiting in a tile (see :func:`start_bezier`: SIMD over
+    its lanes, into its result planes), then store them in their rows j − count … j − 1 of
     `out`. The FLUSH of the Bézier method, inlined at _eval's one place (one copy of the
     long de Casteljau chain)."""
-    tile, u, res, rows = state
+    for g in range(pad_tile(tile, count)):
+        for k in range(LANES):
+            lane = g * LANES + k
+            col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+            r = bezier_seg(col[0:4], col[4:8], col[8:12], col[12:16], col[16:21], col[21:26], col[26:31],
+                           E.load1(tile, U + lane))
+            E.stores_at(tile, RES + lane, TILE, r)
     for lane in range(count):
-        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
-        r = bezier_seg(col[0:4], col[4:8], col[8:12], col[12:16], col[16:21], col[21:26], col[26:31], E.load1(u, lane))
-        E.store1(res, lane, r[0])
-        E.store1(res, TILE + lane, r[1])
-        E.store1(res, 2 * TILE + lane, r[2])
-        E.store1(res, 3 * TILE + lane, r[3])
-    for lane in range(count):
-        for c in range(4):
-            out[4 * rows[lane] + c] = res[c * TILE + lane]
+        E.stores(out, 4 * (j - count + lane), E.loads_at(tile, RES + lane, TILE, 4))
 
 
 @rowloop(inline=True)
 def start_bezier(seg):
-    """A block's tile: its samples' segment rows column by column, u, the results, the sample rows."""
-    return (np.empty(NSEG * TILE, seg.dtype), np.empty(TILE, seg.dtype), np.empty(4 * TILE, seg.dtype),
-            np.empty(TILE, np.int64))
+    """A block's tile: its samples' table rows column by column, their u, the results (see ``U``, ``RES``)."""
+    return np.empty(TILE_FLOATS, seg.dtype)
 
 
 @rowloop(inline=True)
-def run_bezier(times, new_t, seg, out, sg, j, e, state, count):
+def run_bezier(times, new_t, seg, out, sg, j, e, tile, count):
     """Samples j, j + 1, … wait in the tile until the run ends or the tile is full."""
     t0, h, n, x0 = _segment(times, seg, sg)
-    tile, u, res, rows = state
     i = j
     while i < e and count < TILE:
         E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
-        u[count] = like(x0, (new_t[i] - t0) / h)
-        rows[count] = i
+        tile[U + count] = like(x0, (new_t[i] - t0) / h)
         count += 1
         i += 1
     return i, count
 
 
-def run_bezier_rates(times, new_t, seg, out, sg, j, e, state, count):
+def run_bezier_rates(times, new_t, seg, out, sg, j, e, tile, count):
     """:func:`run_bezier` for the rates: each waiting sample's 1/h or 1/h² (``ORDER``
     1, 2) too, in the fourth plane of the tile's results."""
     t0, h, n, x0 = _segment(times, seg, sg)
-    tile, u, res, rows = state
     inv_h = like(x0, 1.0 / h)
     scale = inv_h if ORDER == 1 else inv_h * inv_h
     i = j
     while i < e and count < TILE:
         E.stores_at(tile, count, TILE, E.loads(seg, n, NSEG))  # the sample's table row, as a column
-        u[count] = like(x0, (new_t[i] - t0) / h)
-        res[3 * TILE + count] = scale
-        rows[count] = i
+        tile[U + count] = like(x0, (new_t[i] - t0) / h)
+        tile[RES + 3 * TILE + count] = scale
         count += 1
         i += 1
     return i, count
 
 
-def bezier_rate_tile(out, state, count):
+def bezier_rate_tile(out, tile, count, j):
     """The FLUSH of the Bézier rates (``ORDER`` 1 angular velocity, 2 acceleration; `out`
     flat (3m,)): the rules of :func:`_run_rates` (``KIND`` 1) on the samples waiting in
     a tile (see :func:`bezier_tile`), SIMD over its lanes, with 512-bit vectors where
@@ -366,35 +384,33 @@ def bezier_rate_tile(out, state, count):
     run-by-run loop's numbers, which ran as SIMD only over the samples of one segment
     (a run of four was one 256-bit vector, of three or five scalar code)."""
     prefer_wide_vectors()
-    tile, u, res, rows = state
+    for g in range(pad_tile(tile, count)):
+        for k in range(LANES):
+            lane = g * LANES + k
+            col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
+            q0, a, b, q1 = col[0:4], col[4:8], col[8:12], col[12:16]
+            c0, c1, c2 = col[16:21], col[21:26], col[26:31]
+            ul = E.load1(tile, U + lane)
+            x0 = like(ul, 0.0)
+            one = like(ul, 1.0)
+            w0 = arc_rotvec(q0, c0[0], (c0[1], c0[2], c0[3], c0[4]))
+            w1 = arc_rotvec(a, c1[0], (c1[1], c1[2], c1[3], c1[4]))
+            w2 = arc_rotvec(b, c2[0], (c2[1], c2[2], c2[3], c2[4]))
+            p01 = arc_slerp(q0, a, c0, ul)
+            p12 = arc_slerp(a, b, c1, ul)
+            p23 = arc_slerp(b, q1, c2, ul)
+            if ORDER == 1:
+                s012, w012, _x = slerp_rates(p01, w0, p12, w1, ul, one)
+                s123, w123, _x = slerp_rates(p12, w1, p23, w2, ul, one)
+                v = slerp_rates(s012, w012, s123, w123, ul, one)[1]
+            else:
+                s012, w012, g012 = slerp_acc_fixed(p01, w0, p12, w1, ul, one, x0)
+                s123, w123, g123 = slerp_acc_fixed(p12, w1, p23, w2, ul, one, x0)
+                v = slerp_acc(s012, w012, g012, s123, w123, g123, ul, one, x0)[2]
+            scale = E.load1(tile, RES + 3 * TILE + lane)
+            E.stores_at(tile, RES + lane, TILE, (v[0] * scale, v[1] * scale, v[2] * scale))
     for lane in range(count):
-        col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
-        q0, a, b, q1 = col[0:4], col[4:8], col[8:12], col[12:16]
-        c0, c1, c2 = col[16:21], col[21:26], col[26:31]
-        ul = E.load1(u, lane)
-        x0 = like(ul, 0.0)
-        one = like(ul, 1.0)
-        w0 = arc_rotvec(q0, c0[0], (c0[1], c0[2], c0[3], c0[4]))
-        w1 = arc_rotvec(a, c1[0], (c1[1], c1[2], c1[3], c1[4]))
-        w2 = arc_rotvec(b, c2[0], (c2[1], c2[2], c2[3], c2[4]))
-        p01 = arc_slerp(q0, a, c0, ul)
-        p12 = arc_slerp(a, b, c1, ul)
-        p23 = arc_slerp(b, q1, c2, ul)
-        if ORDER == 1:
-            s012, w012, _x = slerp_rates(p01, w0, p12, w1, ul, one)
-            s123, w123, _x = slerp_rates(p12, w1, p23, w2, ul, one)
-            v = slerp_rates(s012, w012, s123, w123, ul, one)[1]
-        else:
-            s012, w012, g012 = slerp_acc_fixed(p01, w0, p12, w1, ul, one, x0)
-            s123, w123, g123 = slerp_acc_fixed(p12, w1, p23, w2, ul, one, x0)
-            v = slerp_acc(s012, w012, g012, s123, w123, g123, ul, one, x0)[2]
-        scale = E.load1(res, 3 * TILE + lane)
-        E.store1(res, lane, v[0] * scale)
-        E.store1(res, TILE + lane, v[1] * scale)
-        E.store1(res, 2 * TILE + lane, v[2] * scale)
-    for lane in range(count):
-        for c in range(3):
-            out[3 * rows[lane] + c] = res[c * TILE + lane]
+        E.stores(out, 3 * (j - count + lane), E.loads_at(tile, RES + lane, TILE, 3))
 
 
 # Sorted new times of more than PIECES_MIN_KEYS keys go through the table piece by
