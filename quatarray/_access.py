@@ -13,6 +13,8 @@ vector, a quaternion and a 3×3 matrix.
 ``loads_at(a, j, s,    elements j, j + s, …, j + (k − 1)s of a C-contiguous buffer
 k)``                   (k literal); ``stores_at(out, j, s, x)``: a column of planes
                        (SIMD lanes side by side, such as a tile's)
+``stream4(out, i, q)`` ``store4`` past the caches, for an output that :func:`streams`;
+                       ``stream_end()`` after a loop's last one
 =====================  ==============================================================
 
 Compiled, a C-contiguous array is addressed as a flat buffer at a literal
@@ -30,7 +32,9 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import lower_builtin, type_callable
 
-from ._jit import CHECK_BOUNDS, element
+from llvmlite import ir
+
+from ._jit import CHECK_BOUNDS, STREAM_MIN_BYTES, element
 
 
 def load1(a, i):
@@ -320,3 +324,79 @@ for _fn, _width in _STORES.items():
     lower_builtin(_fn, types.Array, types.Integer, types.Any)(_lower_store(_width))
 
 
+
+
+# ---- non-temporal stores: a large output written past the caches
+
+
+def streams(out):
+    """Whether a kernel may write `out` with :func:`stream4`: a C-contiguous float
+    array of at least :data:`quatarray._jit.STREAM_MIN_BYTES` whose buffer is 16-byte
+    aligned (the non-temporal vector stores need it; numpy's allocations are).
+
+    An ordinary store first reads the cache line it writes into (write-allocate):
+    for a large output, a third of slerp's memory traffic went to reading lines
+    only to overwrite them, and the output then evicted the inputs."""
+    return (out.nbytes >= STREAM_MIN_BYTES and out.flags.c_contiguous and out.dtype.kind == "f"
+            and out.ctypes.data % 16 == 0)
+
+
+def stream4(out, i, q):
+    """``store4(out, i, q)`` with the non-temporal hint: 16-byte vector stores that
+    bypass the caches (``movntpd`` on x86), for a C-contiguous output that
+    :func:`streams`. Other layouts are stored as ``store4`` does. The stores are
+    weakly ordered: the loop ends with :func:`stream_end`."""
+    store4(out, i, q)
+
+
+def stream_end():
+    """A store fence: the non-temporal stores before it are ordered before any later
+    store (``sfence`` on x86, which the locked instruction of LLVM's ``fence`` is not
+    documented to do for these stores; a ``fence`` elsewhere), so that whoever the
+    loop hands its output to sees it."""
+
+
+@type_callable(stream4)
+def _type_stream4(context):
+    return _typer_store(4)
+
+
+@lower_builtin(stream4, types.Array, types.Integer, types.Any)
+def _lower_stream4(context, builder, sig, args):
+    aryty, ity, xty = sig.args
+    values = _tuple_items(builder, args[2], xty)
+    if aryty.layout != "C" or aryty.dtype not in (types.float32, types.float64):
+        return _store_run(context, builder, aryty, args[0], (args[1], ity), 4, values)
+    ary = context.make_array(aryty)(context, builder, args[0])
+    first = _pointer(context, builder, aryty, ary, (args[1], ity), 0, 4)
+    if CHECK_BOUNDS:
+        _pointer(context, builder, aryty, ary, (args[1], ity), 3, 4)  # the row's last element checked too
+    vals = [context.cast(builder, x, types.unliteral(t), aryty.dtype) for x, t in values]
+    lanes = 16 // context.get_abi_sizeof(vals[0].type)  # two float64 or four float32
+    vec = ir.VectorType(vals[0].type, lanes)
+    hint = builder.module.add_metadata([ir.Constant(ir.IntType(32), 1)])
+    for c in range(0, 4, lanes):
+        v = ir.Constant(vec, ir.Undefined)
+        for k in range(lanes):
+            v = builder.insert_element(v, vals[c + k], ir.Constant(ir.IntType(32), k))
+        ptr = builder.bitcast(builder.gep(first, [context.get_constant(types.intp, c)], inbounds=True), vec.as_pointer())
+        builder.store(v, ptr, align=16).set_metadata("nontemporal", hint)
+    return context.get_dummy_value()
+
+
+@type_callable(stream_end)
+def _type_stream_end(context):
+    def typer():
+        return types.none
+
+    return typer
+
+
+@lower_builtin(stream_end)
+def _lower_stream_end(context, builder, sig, args):
+    if builder.module.triple.startswith(("x86_64", "i686", "i386")):
+        sfence = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []), "llvm.x86.sse.sfence")
+        builder.call(sfence, [])
+    else:
+        builder.fence("seq_cst")
+    return context.get_dummy_value()

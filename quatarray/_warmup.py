@@ -140,6 +140,24 @@ def _interp(f, s, *extra, **kw):
     f(s.p[0], s.q[0], *[e[0] for e in extra], s.t, **kw)
 
 
+def _slerp_blocks(f, s):
+    """slerp on more rows than one block of its loop (which calls of a block skip), each
+    call also with its output written past the caches."""
+    from . import _access
+    from .interpolation import SLERP_BLOCK
+
+    reps = SLERP_BLOCK // len(s.t) + 1
+    p, q, t = np.tile(s.p, (reps, 1)), np.tile(s.q, (reps, 1)), np.tile(s.t, reps)
+    least = _access.STREAM_MIN_BYTES
+    for stream in (least, 0):
+        _access.STREAM_MIN_BYTES = stream
+        try:
+            _each(f, p, q, t, out=True)
+            _each(f, p, q, t, out=True, shortest=False)
+        finally:
+            _access.STREAM_MIN_BYTES = least
+
+
 def _vqs(qa, s):
     return qa.VQS(s.v, s.p, s.s)
 
@@ -368,6 +386,9 @@ TABLE = {
     # rows slerp's main loop leaves to a kernel of their own (identical and antipodal ends)
     "slerp[rare rows]": _f("slerp", lambda f, s: (_each(f, s.p, s.p, s.t, out=True),
                                                   _each(f, s.p, -s.p, s.t, out=True, shortest=False))),
+    # calls of more than one block (slerp's block loop, serial and parallel) and of outputs
+    # written past the caches (their own loop, for large outputs: here made to stream)
+    "slerp[blocks]": lambda qa, s: _slerp_blocks(qa.slerp, s),
     "double": _f("double", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bisect": _f("bisect", lambda f, s: _each(f, s.p, s.q, out=True)),
     "bezier_controls": _f("bezier_controls", lambda f, s: (_each(f, s.keys), f(s.keys, s.times))),

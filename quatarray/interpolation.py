@@ -23,7 +23,8 @@ import numba
 import numpy as np
 
 from . import _elements as E
-from ._jit import fmuladd, like, prange, prefer_wide_vectors, rowloop
+from ._access import streams
+from ._jit import fmuladd, like, prange, prefer_wide_vectors, rowloop, specialise
 from ._slerp import (
     arc,
     arc_fast,
@@ -53,6 +54,7 @@ ROWS = 1024
 
 SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
 SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
+STREAM = False  # _slerp's rows written past the caches (E.stream4): True in _slerp_stream
 
 
 @rowloop(rows=2)
@@ -68,7 +70,10 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
     angle tθ, the tangent v and the sign of q, from :func:`quatarray._slerp.arc_fast`)
     into planes; the sine and cosine of the angles, in place; then the rows
     p cos tθ + v sin tθ (±q where t = 1), read from the planes and the inputs, so
-    `out` may be `p` or `q`.
+    `out` may be `p` or `q`. :data:`STREAM` (the variant ``_slerp_stream``, for an
+    output that :func:`quatarray._access.streams`) writes them with non-temporal
+    stores: at 2·10⁶ rows 1.07-1.2x faster (no cache line of `out` read only to be
+    overwritten).
 
     In one pass, each row is a chain of dependent operations (chords, square
     roots, atan, sincos) longer than the CPU can overlap with the next rows: the
@@ -111,11 +116,19 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
                 if E.load1(t, i) == like(s, 1.0):
                     r = (sq * qi[0], sq * qi[1], sq * qi[2], sq * qi[3])
                 if rare == like(s, 0.0):
-                    E.store4(out, i, r)
+                    if STREAM:
+                        E.stream4(out, i, r)
+                    else:
+                        E.store4(out, i, r)
                 else:  # a rare row keeps its input (out may be p or q), for _slerp_rare
                     rare_bits[i >> 6] |= np.uint64(1) << np.uint64(i & 63)
                     total += 1
+        if STREAM:
+            E.stream_end()
     return total
+
+
+_slerp_stream = rowloop(rows=2)(specialise(_slerp.py_func, "_stream", STREAM=True))
 
 
 @rowloop(parallel=False)
@@ -167,7 +180,7 @@ def _run_slerp(p, q, t, shortest, out):
     chunks = blocks if blocks <= SLERP_CHUNKS else min(blocks, SLERP_CHUNKS * numba.get_num_threads())
     planes = np.empty(chunks * 8 * SLERP_BLOCK, out.dtype)
     rare_bits = np.zeros((n + 63) // 64, np.uint64)
-    if _slerp(p, q, t, shortest, planes, rare_bits, out):
+    if (_slerp_stream if streams(out) else _slerp)(p, q, t, shortest, planes, rare_bits, out):
         _slerp_rare(p, q, t, shortest, rare_bits, out)
 
 

@@ -8,8 +8,9 @@ import pytest
 from numba.core.errors import TypingError
 
 from compile_events import compiles
+from quatarray import _access
 from quatarray._access import (load1, load3, load4, load33, loads, loads_at, store1, store3, store33, store4,
-                               stores, stores_at)
+                               stores, stores_at, stream4, stream_end, streams)
 
 JIT = os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
 
@@ -21,6 +22,13 @@ def _copy_rows(q, v, s, m, q_out, v_out, s_out, m_out):
         store3(v_out, i, load3(v, i))
         store1(s_out, i, load1(s, i) * 2)  # an integer product: cast to the output's float type
         store33(m_out, i, load33(m, i))
+
+
+@numba.njit
+def _stream_rows(q, out):
+    for i in range(q.shape[0]):
+        stream4(out, i, load4(q, i))
+    stream_end()
 
 
 @numba.njit
@@ -120,3 +128,32 @@ def test_the_accessors_compile_nothing_of_their_own():
     with compiles() as compiled:
         kernel(*args)
     assert compiled == ["kernel"]
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_streamed_rows_are_the_stored_ones(dtype):
+    """stream4 writes what store4 does: into flat and (n, 4) C-contiguous outputs (the
+    non-temporal vector stores) and, as store4, into the other layouts."""
+    q = np.random.default_rng(4).normal(size=(41, 4)).astype(dtype)
+    for out in (np.full((41, 4), np.nan, dtype), np.full(4 * 41, np.nan, dtype)):
+        assert out.ctypes.data % 16 == 0
+        _stream_rows(q, out)
+        np.testing.assert_array_equal(out.reshape(41, 4), q)
+    for layout in ("F", "strided"):
+        out = _layouts(np.full((41, 4), np.nan, dtype))[layout]
+        _stream_rows(q, out)
+        np.testing.assert_array_equal(out, q)
+
+
+def test_which_outputs_stream(monkeypatch):
+    """Only large, C-contiguous float outputs aligned to 16 bytes are streamed."""
+    monkeypatch.setattr(_access, "STREAM_MIN_BYTES", 1024)
+    assert streams(np.empty((64, 4)))
+    assert streams(np.empty((64, 4), np.float32))
+    assert not streams(np.empty((31, 4)))  # 992 bytes: left in the cache
+    assert not streams(np.empty((64, 8))[:, ::2])  # strided
+    assert not streams(np.empty((64, 4), np.int64))
+    raw = np.empty(8 * 4 * 64 + 16, np.uint8)
+    off = (-raw.ctypes.data) % 16 + 8  # an address 8 bytes past a 16-byte boundary
+    misaligned = raw[off:off + 8 * 4 * 64].view(np.float64).reshape(64, 4)
+    assert misaligned.flags.c_contiguous and not streams(misaligned)

@@ -27,6 +27,11 @@ SCRIPT = textwrap.dedent("""
     def store_past(out):
         E.store3(out, out.shape[0], (1.0, 2.0, 3.0))
 
+    @rowloop(parallel=False)
+    def stream_past(out):
+        E.stream4(out, out.shape[0], (1.0, 2.0, 3.0, 4.0))
+        E.stream_end()
+
     cases = {
         "C": (np.zeros((3, 4)), np.zeros((3, 4))),
         "strided": (np.zeros((3, 8))[:, ::2], np.zeros((3, 4))),
@@ -42,6 +47,10 @@ SCRIPT = textwrap.dedent("""
         store_past(np.zeros((2, 3)))
     except IndexError:
         print("store3 IndexError")
+    try:
+        stream_past(np.zeros((2, 4)))
+    except IndexError:
+        print("stream4 IndexError")
 
     rng = np.random.default_rng(0)
     p, q = qa.random(50, rng=rng), qa.random(50, rng=rng)
@@ -58,6 +67,6 @@ def test_debug_mode_raises_past_the_array_and_computes_the_same():
                          timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     lines = res.stdout.splitlines()
-    for name in ("C", "strided", "flat", "float32", "store3"):
+    for name in ("C", "strided", "flat", "float32", "store3", "stream4"):
         assert f"{name} IndexError" in lines, res.stdout
     assert "multiply True" in lines and "spline (200, 4)" in lines

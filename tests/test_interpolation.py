@@ -169,6 +169,46 @@ def test_slerp_rows_do_not_depend_on_the_batch(rng, dtype):
     assert np.array_equal(want[zero], p[zero])
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("shortest", [True, False])
+def test_slerp_streamed_rows_are_the_cached_ones(rng, monkeypatch, dtype, shortest):
+    """The variant for large outputs (non-temporal stores, ``_slerp_stream``) gives the
+    rows of the plain loop bit for bit, rare pairs and exact ends included, serial and
+    parallel, into a new array and into `p` or `q` as `out`; a misaligned `out` takes
+    the plain loop."""
+    from quatarray import _access, _jit
+
+    n = 3 * I.SLERP_BLOCK + 29
+    p, q = qa.random(n, rng, dtype), qa.random(n, rng, dtype)
+    t = rng.uniform(-0.5, 1.5, n).astype(dtype)
+    t[::7], t[3::11] = 1, 0
+    q[5::13], q[6::17] = p[5::13], -p[6::17]
+    want = qa.slerp(p, q, t, shortest)
+    calls = []
+    monkeypatch.setattr(_access, "STREAM_MIN_BYTES", 0)
+    monkeypatch.setattr(I, "_slerp_stream", _counted(I._slerp_stream, calls))
+    for name in ("serial", "parallel"):
+        with _jit.variant(name):
+            assert np.array_equal(qa.slerp(p, q, t, shortest), want)
+            pp, qq = p.copy(), q.copy()
+            assert np.array_equal(qa.slerp(pp, q, t, shortest, out=pp), want)
+            assert np.array_equal(qa.slerp(p, qq, t, shortest, out=qq), want)
+    assert len(calls) == 6
+    raw = np.empty(want.nbytes + 16, np.uint8)
+    off = (-raw.ctypes.data) % 16 + want.itemsize
+    out = raw[off:off + want.nbytes].view(dtype).reshape(want.shape)
+    assert np.array_equal(qa.slerp(p, q, t, shortest, out=out), want)
+    assert len(calls) == 6
+
+
+def _counted(loop, calls):
+    def run(*args):
+        calls.append(1)
+        return loop(*args)
+
+    return run
+
+
 def test_slerp_float32(rng):
     p, q = qa.random(100, rng, np.float32), qa.random(100, rng, np.float32)
     r = qa.slerp(p, q, 0.3)

@@ -223,6 +223,20 @@ def test_table_reaches_the_spline_rate_piece_kernels(monkeypatch):
     assert seen == [k for k in splines._RATE_PIECES for _ in range(2)]  # float64 and float32 times
 
 
+def test_table_reaches_slerps_block_loops(monkeypatch):
+    """Calls of one block take the serial loop with a per-thread scratch; the table's
+    "slerp[blocks]" entry reaches the block loop and its variant for outputs written
+    past the caches, in every layout the others meet."""
+    from quatarray import interpolation
+
+    seen = []
+    for name in ("_slerp", "_slerp_stream"):
+        monkeypatch.setattr(interpolation, name, lambda *a, n=name: seen.append((n, a[-1].flags.writeable)) or 0)
+    _warmup.TABLE["slerp[blocks]"](qa, _warmup._samples("float64"))
+    assert {n for n, _ in seen} == {"_slerp", "_slerp_stream"}
+    assert seen.count(("_slerp", True)) == seen.count(("_slerp_stream", True)) > 1
+
+
 def test_bad_arguments():
     with pytest.raises(ValueError, match="dtype"):
         qa.warmup(dtype="float16")
