@@ -602,6 +602,29 @@ def _lower_prefer_no_gather(context, builder, sig, args):
     return context.get_dummy_value()
 
 
+def scratch(n, like_array):
+    """A new 1-D array of `n` zeros of `like_array`'s dtype, inside a kernel:
+    ``np.zeros(n, like_array.dtype)`` without numba's overloads to compile
+    (:func:`quatarray._numba_internals.new_zeros`). For a kernel's work arrays; in
+    plain Python it is ``np.zeros``."""
+    return np.zeros(n, like_array.dtype)
+
+
+@type_callable(scratch)
+def _type_scratch(context):
+    def typer(n, like_array):
+        if isinstance(n, types.Integer) and isinstance(like_array, types.Array):
+            return types.Array(like_array.dtype, 1, "C")
+
+    return typer
+
+
+@lower_builtin(scratch, types.Integer, types.Array)
+def _lower_scratch(context, builder, sig, args):
+    n = context.cast(builder, args[0], sig.args[0], types.intp)
+    return _ni.new_zeros(context, builder, sig.return_type, n)
+
+
 def prefer_wide_vectors():
     """Compile the function this is called in with 512-bit vectors where the CPU has them.
 

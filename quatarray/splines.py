@@ -56,7 +56,7 @@ import numpy as np
 
 from . import _cubic
 from . import _elements as E
-from ._jit import element, like, prange, prefer_wide_vectors, rowloop, specialise
+from ._jit import element, like, prange, prefer_wide_vectors, rowloop, scratch, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_acc_fixed, slerp_rates
 from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
@@ -80,7 +80,9 @@ U = NSEG * TILE
 RES = U + TILE
 TILE_FLOATS = RES + 4 * TILE
 # The lanes are evaluated in groups of LANES (a constant trip count: SIMD with no scalar
-# remainder loop), the last group filled with copies of lane 0 (their results not used).
+# remainder loop); the lanes of the last group past the samples compute on what the
+# tile holds there, zeros or an earlier tile's rows (no denormals: the tile starts as
+# zeros), and their results are not used.
 LANES = 16
 
 
@@ -312,25 +314,12 @@ def run_squad(times, new_t, seg, out, sg, j, e, state, count):
 
 
 @rowloop(inline=True)
-def pad_tile(tile, count):
-    """The lanes count … of the tile's last group of LANES (when count is not a whole
-    number of groups): copies of lane 0 (u and the rates' scale with it), so that the
-    groups compute on real rows; their results are not used. Returns the groups."""
-    groups = (count + LANES - 1) // LANES
-    for lane in range(count, groups * LANES):
-        E.stores_at(tile, lane, TILE, E.loads_at(tile, 0, TILE, NSEG))
-        tile[U + lane] = tile[U]
-        tile[RES + 3 * TILE + lane] = tile[RES + 3 * TILE]
-    return groups
-
-
-@rowloop(inline=True)
 def bezier_tile(out, tile, count, j):
     """Evaluate the `count` samples waiting in a tile (see :func:`start_bezier`: SIMD over
     its lanes, into its result planes), then store them in their rows j − count … j − 1 of
     `out`. The FLUSH of the Bézier method, inlined at _eval's one place (one copy of the
     long de Casteljau chain)."""
-    for g in range(pad_tile(tile, count)):
+    for g in range((count + LANES - 1) // LANES):
         for k in range(LANES):
             lane = g * LANES + k
             col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
@@ -343,8 +332,10 @@ def bezier_tile(out, tile, count, j):
 
 @rowloop(inline=True)
 def start_bezier(seg):
-    """A block's tile: its samples' table rows column by column, their u, the results (see ``U``, ``RES``)."""
-    return np.empty(TILE_FLOATS, seg.dtype)
+    """A block's tile, zeros: its samples' table rows column by column, their u, the results
+    (see ``U``, ``RES``); allocated by :func:`quatarray._jit.scratch` (numba's ``np.zeros``
+    was 0.07 s of the Bézier first calls' compile)."""
+    return scratch(TILE_FLOATS, seg)
 
 
 @rowloop(inline=True)
@@ -384,7 +375,7 @@ def bezier_rate_tile(out, tile, count, j):
     run-by-run loop's numbers, which ran as SIMD only over the samples of one segment
     (a run of four was one 256-bit vector, of three or five scalar code)."""
     prefer_wide_vectors()
-    for g in range(pad_tile(tile, count)):
+    for g in range((count + LANES - 1) // LANES):
         for k in range(LANES):
             lane = g * LANES + k
             col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row

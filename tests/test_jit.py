@@ -169,6 +169,37 @@ def test_prefer_no_gather_marks_the_loop_and_keeps_its_results():
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_scratch_is_a_new_array_of_zeros_and_compiles_nothing_of_its_own(dtype):
+    """``scratch(n, a)``: n zeros of a's dtype, a new array each call (a kernel's work
+    array), without numba's ``np.zeros`` overloads to compile; a negative or overflowing
+    size raises."""
+    import numba
+
+    from compile_events import compiles
+
+    @numba.njit
+    def work(n, a):
+        s = _jit.scratch(n, a)
+        t = _jit.scratch(n, a)
+        for i in range(n):
+            s[i] += a[i % a.shape[0]]
+        return s, t
+
+    a = np.arange(1, 4, dtype=dtype)
+    with compiles() as compiled:
+        s, t = work(7, a)
+    if not numba.config.DISABLE_JIT:
+        assert compiled == ["work"]
+    assert s.dtype == t.dtype == dtype and s.shape == t.shape == (7,)
+    np.testing.assert_array_equal(s, np.resize(a, 7))
+    np.testing.assert_array_equal(t, 0)
+    assert work(0, a)[0].shape == (0,)
+    for bad in (-1, 2**62):
+        with pytest.raises((ValueError, MemoryError)):
+            work(bad, a)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_fmuladd_is_one_rounding_or_two_and_the_same_in_every_lane(dtype):
     """``fmuladd(a, b, c)``: a·b + c rounded once (an FMA) or twice (no FMA on this
     CPU), the same choice for every element of a loop, SIMD part or remainder."""

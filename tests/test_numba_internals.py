@@ -23,11 +23,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # Computed here and in each child: far-range rows (as_mrp, norm: the specialised
 # copies), a row loop (multiply), a 3x3 output (as_matrix: prefer_no_gather), an
-# element function called from Python (its wrapped twin), float32 and float64.
+# element function called from Python (its wrapped twin), float32 and float64, and a
+# kernel's work array (scratch).
 WORK = """
+import numba
 import numpy as np
 import quatarray as qa
-from quatarray import _access
+from quatarray import _access, _jit
 
 
 def work():
@@ -42,7 +44,13 @@ def work():
         out += [qa.as_mrp(a), qa.norm(a), qa.multiply(a, b), qa.as_matrix(b)]
     m = rng.normal(size=(2, 3, 3))
     out.append(np.array(_access.load33(m, 1)))
+    out.append(zeros(5, q))
     return [np.asarray(x).tobytes().hex() for x in out]
+
+
+@numba.njit
+def zeros(n, like):  # a kernel's work array (quatarray._jit.scratch)
+    return _jit.scratch(n, like)
 """
 
 CHILD = """
@@ -136,6 +144,12 @@ CASES = {
         "codegen.CPUCodegen.magic_tuple = lambda self: (self._llvm_module.triple, self._get_host_cpu_name(), "
         "self._features_v2)",
         "", "prefer_no_gather", True),
+    "populate_array": (
+        # another signature (numba's own allocations, which pass the array by position, still work)
+        "import numba.np.arrayobj as A\n"
+        "_populate = A.populate_array\n"
+        "A.populate_array = lambda ary, **fields: _populate(ary, **fields)",
+        "", "scratch arrays", True),
     "attribute_set": (
         "from llvmlite.ir import values\n"
         "_to_list = values.AttributeSet._to_list\n"
