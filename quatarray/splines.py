@@ -18,8 +18,9 @@ state, its evaluation, its size: the Bézier tile). A new method plugs in with
 one row there, a ``KIND`` branch in :func:`_segments` if it needs other arcs
 (or more columns: ``NSEG``), and its ``run``; the method's compiled loops are
 derived from the row (``_EVALS``, ``_SEGMENTS``, ``_PIECES``), and so are its
-rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table,
-``_RATES``) when its ``KIND`` is one of theirs. A method whose curve is not a
+rate loops (``order`` 1 and 2: :func:`_run_rates` on the whole table, or
+for the Bézier curve its tiles, :func:`bezier_rate_tile`; ``_RATES``) when its
+``KIND`` is one of theirs. A method whose curve is not a
 table of independent segments gives ``resample(t, nt, q, order)`` instead and
 does everything itself: ``"cubic"``, scipy's RotationSpline, whose rates come
 from one system over all keys (:mod:`quatarray._cubic`, :func:`_run_cubic`).
@@ -369,11 +370,13 @@ def run_bezier_rates(times, new_t, seg, out, sg, j, e, tile, count):
 
 def bezier_rate_tile(out, tile, count, j):
     """The FLUSH of the Bézier rates (``ORDER`` 1 angular velocity, 2 acceleration; `out`
-    flat (3m,)): the rules of :func:`_run_rates` (``KIND`` 1) on the samples waiting in
-    a tile (see :func:`bezier_tile`), SIMD over its lanes, with 512-bit vectors where
-    the CPU has them (:func:`quatarray._jit.prefer_wide_vectors`). Bit for bit the
-    run-by-run loop's numbers, which ran as SIMD only over the samples of one segment
-    (a run of four was one 256-bit vector, of three or five scalar code)."""
+    flat (3m,)): the derivative rules of :mod:`quatarray._rates` (as :func:`_run_rates`
+    for the other methods) on the samples waiting in a tile (see :func:`bezier_tile`):
+    the rates of the three fixed control arcs, then of the two levels of slerps of
+    moving ends, SIMD over its lanes, with 512-bit vectors where the CPU has them
+    (:func:`quatarray._jit.prefer_wide_vectors`). A run-by-run loop ran as SIMD only
+    over the samples of one segment (a run of four was one 256-bit vector, of three or
+    five scalar code)."""
     prefer_wide_vectors()
     for g in range((count + LANES - 1) // LANES):
         for k in range(LANES):
@@ -471,7 +474,8 @@ ORDER = 1  # 1 angular velocity, 2 angular acceleration: rebound in each copy of
 
 def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
     """Angular velocity (``ORDER`` 1) or acceleration (2) of the curve of the method
-    whose table ``KIND`` is (see :func:`_segments`) on one run of samples (`out` flat
+    whose table ``KIND`` is (see :func:`_segments`; slerp, squad, nlerp: the Bézier
+    curve's rates are :func:`bezier_rate_tile`) on one run of samples (`out` flat
     (3m,)): the derivative rules of :mod:`quatarray._rates` on the table's fixed arcs
     (their constant rates) and the slerps of moving ends above them."""
     t0, h, n, x0 = _segment(times, seg, sg)
@@ -483,7 +487,6 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
     # the rates of the table's fixed arcs (those a method does not have are not used)
     w0 = _arc_rate(seg, n, 16, q0)
     w1 = _arc_rate(seg, n, 21, a)
-    w2 = _arc_rate(seg, n, 26, b)
     for i in range(j, e):
         u = like(x0, (E.load1(new_t, i) - t0) / h)
         if KIND == 0:
@@ -507,18 +510,6 @@ def _run_rates(times, new_t, seg, out, sg, j, e, state, count):
                 v = slerp_rates(pq, w0, ps, w1, w, dw)[1]
             else:
                 v = slerp_acc_fixed(pq, w0, ps, w1, w, dw, like(x0, -4.0))[2]
-        if KIND == 1:
-            p01 = arc_slerp(q0, a, E.loads(seg, n + 16, 5), u)
-            p12 = arc_slerp(a, b, E.loads(seg, n + 21, 5), u)
-            p23 = arc_slerp(b, q1, E.loads(seg, n + 26, 5), u)
-            if ORDER == 1:
-                s012, w012, _x = slerp_rates(p01, w0, p12, w1, u, one)
-                s123, w123, _x = slerp_rates(p12, w1, p23, w2, u, one)
-                v = slerp_rates(s012, w012, s123, w123, u, one)[1]
-            else:
-                s012, w012, g012 = slerp_acc_fixed(p01, w0, p12, w1, u, one, x0)
-                s123, w123, g123 = slerp_acc_fixed(p12, w1, p23, w2, u, one, x0)
-                v = slerp_acc(s012, w012, g012, s123, w123, g123, u, one, x0)[2]
         E.store1(out, 3 * i, v[0] * scale)
         E.store1(out, 3 * i + 1, v[1] * scale)
         E.store1(out, 3 * i + 2, v[2] * scale)
