@@ -37,13 +37,13 @@ QUATARRAY_PARALLEL_MIN_ROWS
     ``variant("serial")``) the calls of that thread or task run serial
     whatever their size; other threads keep the rule.
 QUATARRAY_STREAM_MIN_BYTES
-    Outputs of at least this many bytes (default 33554432, 32 MiB) are
+    ``out=`` arrays of at least this many bytes (default 33554432, 32 MiB) are
     written past the caches by the kernels that can (slerp; see
     :func:`quatarray._access.streams`): no cache line is read only to be
     overwritten, and the inputs stay cached. Below it the output is better
     left in the cache for its next use (slerp's figures on a 2-core Xeon:
-    1.07-1.2x faster from 10⁶ rows, the same at 5·10⁵, and a following read of
-    the output slower below).
+    1.06-1.23x faster from 10⁶ rows, the same at 5·10⁵, and a following read
+    of the output slower below).
 
 The kernel vocabulary
 ---------------------

@@ -142,7 +142,7 @@ def _interp(f, s, *extra, **kw):
 
 def _slerp_blocks(f, s):
     """slerp on more rows than one block of its loop (which calls of a block skip), each
-    call also with its output written past the caches."""
+    call also with its given output written past the caches."""
     from . import _access
     from .interpolation import SLERP_BLOCK
 

@@ -172,10 +172,10 @@ def test_slerp_rows_do_not_depend_on_the_batch(rng, dtype):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 @pytest.mark.parametrize("shortest", [True, False])
 def test_slerp_streamed_rows_are_the_cached_ones(rng, monkeypatch, dtype, shortest):
-    """The variant for large outputs (non-temporal stores, ``_slerp_stream``) gives the
-    rows of the plain loop bit for bit, rare pairs and exact ends included, serial and
-    parallel, into a new array and into `p` or `q` as `out`; a misaligned `out` takes
-    the plain loop."""
+    """The variant for a caller's large `out` (non-temporal stores, ``_slerp_stream``)
+    gives the rows of the plain loop bit for bit, rare pairs and exact ends included,
+    serial and parallel, into a given array and into `p` or `q` as `out`; a new output
+    and a misaligned `out` take the plain loop."""
     from quatarray import _access, _jit
 
     n = 3 * I.SLERP_BLOCK + 29
@@ -189,7 +189,8 @@ def test_slerp_streamed_rows_are_the_cached_ones(rng, monkeypatch, dtype, shorte
     monkeypatch.setattr(I, "_slerp_stream", _counted(I._slerp_stream, calls))
     for name in ("serial", "parallel"):
         with _jit.variant(name):
-            assert np.array_equal(qa.slerp(p, q, t, shortest), want)
+            assert np.array_equal(qa.slerp(p, q, t, shortest), want)  # a new output: not streamed
+            assert np.array_equal(qa.slerp(p, q, t, shortest, out=np.empty_like(p)), want)
             pp, qq = p.copy(), q.copy()
             assert np.array_equal(qa.slerp(pp, q, t, shortest, out=pp), want)
             assert np.array_equal(qa.slerp(p, qq, t, shortest, out=qq), want)
