@@ -37,13 +37,14 @@ QUATARRAY_PARALLEL_MIN_ROWS
     ``variant("serial")``) the calls of that thread or task run serial
     whatever their size; other threads keep the rule.
 QUATARRAY_STREAM_MIN_BYTES
-    ``out=`` arrays of at least this many bytes (default 33554432, 32 MiB) are
+    ``out=`` arrays of at least this many bytes (default 25165824, 24 MiB) are
     written past the caches by the kernels that can (slerp; see
     :func:`quatarray._access.streams`): no cache line is read only to be
     overwritten, and the inputs stay cached. Below it the output is better
     left in the cache for its next use (slerp's figures on a 2-core Xeon:
-    1.06-1.23x faster from 10⁶ rows, the same at 5·10⁵, and a following read
-    of the output slower below).
+    1.06-1.23x faster from 10⁶ rows (31 MiB), also with a read of the output
+    after it; at 7.5·10⁵ rows 1.13x alone, 0.95x with the read; the same at
+    5·10⁵ alone, 0.8x with the read).
 
 The kernel vocabulary
 ---------------------
@@ -217,7 +218,7 @@ CHECK_BOUNDS = os.environ.get("QUATARRAY_CHECK_BOUNDS", "0") == "1"
 CACHE = (os.environ.get("QUATARRAY_NO_CACHE", "0").lower() in ("", "0", "false", "no") and _STAMPED and _LOCKED
          and not CHECK_BOUNDS)
 PARALLEL_MIN_ROWS = int(os.environ.get("QUATARRAY_PARALLEL_MIN_ROWS", "200000"))
-STREAM_MIN_BYTES = int(os.environ.get("QUATARRAY_STREAM_MIN_BYTES", str(2**25)))
+STREAM_MIN_BYTES = int(os.environ.get("QUATARRAY_STREAM_MIN_BYTES", str(24 * 2**20)))
 
 # error_model="numpy": 1/0 gives inf or nan instead of raising, as numpy does.
 _OPTIONS = dict(cache=CACHE, nogil=True, error_model="numpy", **({"boundscheck": True} if CHECK_BOUNDS else {}))
