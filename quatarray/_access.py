@@ -15,6 +15,7 @@ k)``                   (k literal); ``stores_at(out, j, s, x)``: a column of pla
                        (SIMD lanes side by side, such as a tile's)
 ``stream4(out, i, q)`` ``store4`` past the caches, for an output that :func:`streams`;
                        ``stream_end()`` after a loop's last one
+``prefetch(a, j)``     a hint: element j of a C-contiguous buffer is read soon
 =====================  ==============================================================
 
 Compiled, a C-contiguous array is addressed as a flat buffer at a literal
@@ -401,4 +402,38 @@ def _lower_stream_end(context, builder, sig, args):
         builder.call(sfence, [])
     else:
         builder.fence("seq_cst")
+    return context.get_dummy_value()
+
+
+# ---- prefetch hints
+
+
+def prefetch(a, j):
+    """A hint that element j of the C-contiguous array `a` will be read soon: its cache
+    line is fetched into the L2 cache (``prefetcht1`` on x86), which never faults, also
+    past the array's end. A loop that reads its rows from memory while it computes
+    gives the first lines of each 4 KiB page of its next block: the hardware
+    prefetcher follows a stream within a page, and starts again at each new one.
+    In plain Python it does nothing."""
+
+
+@type_callable(prefetch)
+def _type_prefetch(context):
+    def typer(a, j):
+        if isinstance(a, types.Array) and a.layout == "C" and isinstance(j, types.Integer):
+            return types.none
+
+    return typer
+
+
+@lower_builtin(prefetch, types.Array, types.Integer)
+def _lower_prefetch(context, builder, sig, args):
+    ary = context.make_array(sig.args[0])(context, builder, args[0])
+    j = context.cast(builder, args[1], sig.args[1], types.intp)
+    i8p = ir.IntType(8).as_pointer()
+    ptr = builder.bitcast(builder.gep(ary.data, [j]), i8p)  # (no inbounds: it may be past the end)
+    i32 = ir.IntType(32)
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                        "llvm.prefetch.p0i8")
+    builder.call(fn, [ptr, i32(0), i32(2), i32(1)])  # read, locality 2 (L2), data
     return context.get_dummy_value()

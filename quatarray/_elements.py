@@ -15,8 +15,8 @@ from numba import types
 from numba.extending import lower_builtin, overload, type_callable
 
 from ._access import (  # noqa: F401  (row access: kernels spell it E.load4 & co.)
-    load1, load3, load4, load33, loads, loads_at, store1, store3, store4, store33, stores, stores_at, stream4,
-    stream_end,
+    load1, load3, load4, load33, loads, loads_at, prefetch, store1, store3, store4, store33, stores, stores_at,
+    stream4, stream_end,
 )
 from ._jit import (
     CACHE, bit_distance, bits_type, element, exponent_scales, like, lower_bit_distance, prange, prefer_no_gather, select, specialise,

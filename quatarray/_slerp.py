@@ -149,14 +149,15 @@ def arc_fast(p, q, shortest):
     a = np.sqrt(m2)
     b = np.sqrt(p2)
     th = like(a, 2.0) * half_arc(a, b)
-    # s and d of sq: swapped (and d negated) when q is flipped
-    e0, e1, e2, e3 = select(flip, (dw, dx, dy, dz), (sw, sx, sy, sz))
-    g0, g1, g2, g3 = select(flip, (sw, sx, sy, sz), (dw, dx, dy, dz))
-    w = like(a, 1.0) / (like(a, 2.0) * a * b)
-    v = ((m2 * e0 - p2 * g0) * w, (m2 * e1 - p2 * g1) * w, (m2 * e2 - p2 * g2) * w, (m2 * e3 - p2 * g3) * w)
+    # s and d of sq are d and s of q, swapped and d negated when q is flipped, so
+    # m2 s − p2 d is ±(d2 s − s2 d): the sign goes into w (no select per component)
+    w = (like(a, 1.0) - sgn) / (like(a, 2.0) * a * b)
+    v = (fmuladd(d2, sw, -s2 * dw) * w, fmuladd(d2, sx, -s2 * dx) * w, fmuladd(d2, sy, -s2 * dy) * w,
+         fmuladd(d2, sz, -s2 * dz) * w)
     # |v| = 1 within a few ulp (the roundings of a, b and w): one Newton step of the
     # normalisation, v (3 − |v|²)/2, brings it within one, without a square root
-    f = like(a, 1.5) - like(a, 0.5) * qdot(v, v)
+    n2 = fmuladd(v[0], v[0], v[1] * v[1]) + fmuladd(v[2], v[2], v[3] * v[3])
+    f = like(a, 1.5) - like(a, 0.5) * n2
     return th, (v[0] * f, v[1] * f, v[2] * f, v[3] * f), sgn, rare
 
 

@@ -55,6 +55,7 @@ ROWS = 1024
 SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
 SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
 STREAM = False  # _slerp's rows written past the caches (E.stream4): True in _slerp_stream
+PAGE = 512  # elements of a 4 KiB page of float64 (of two for float32): _slerp's prefetch hints
 
 
 @rowloop(rows=2)
@@ -97,6 +98,15 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
         hi = lo + per if lo + per < n else n
         for b0 in range(lo, hi, B):
             m = hi - b0 if hi - b0 < B else B
+            # the next block's first lines of each 4 KiB into L2 (E.prefetch): 1.08-1.1x
+            # from memory, where the rows come in while the arcs are computed
+            nx = b0 + B
+            if nx + B <= hi:
+                for j in range(4 * nx, 4 * (nx + B), PAGE):
+                    for c in range(0, 32, 8):
+                        E.prefetch(p, j + c)
+                        E.prefetch(q, j + c)
+                E.prefetch(t, nx)
             # planes (B apart): tθ then sin tθ, v (four), ±1, rare, cos tθ
             for k in range(m):
                 th, v, sgn, r = arc_fast(E.load4(p, b0 + k), E.load4(q, b0 + k), shortest)

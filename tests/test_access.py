@@ -10,7 +10,7 @@ from numba.core.errors import TypingError
 from compile_events import compiles
 from quatarray import _access
 from quatarray._access import (load1, load3, load4, load33, loads, loads_at, store1, store3, store33, store4,
-                               stores, stores_at, stream4, stream_end, streams)
+                               prefetch, stores, stores_at, stream4, stream_end, streams)
 
 JIT = os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
 
@@ -157,3 +157,20 @@ def test_which_outputs_stream(monkeypatch):
     off = (-raw.ctypes.data) % 16 + 8  # an address 8 bytes past a 16-byte boundary
     misaligned = raw[off:off + 8 * 4 * 64].view(np.float64).reshape(64, 4)
     assert misaligned.flags.c_contiguous and not streams(misaligned)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_prefetch_is_a_hint_only(dtype):
+    """prefetch changes no result and never faults, also far past the array's end."""
+
+    @numba.njit
+    def total(a):
+        s = a[0] * 0
+        for i in range(a.shape[0]):
+            prefetch(a, i + 64)
+            prefetch(a, 10**9)
+            s += a[i]
+        return s
+
+    a = np.arange(100, dtype=dtype)
+    assert total(a) == a.sum()
