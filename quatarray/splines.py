@@ -79,7 +79,10 @@ NSEG = 31  # floats per row of a spline's segment table: 4 quaternions, 3 arcs
 # scalar copy for overlapping arrays beside its SIMD one (the long chain compiled once).
 U = NSEG * TILE
 RES = U + TILE
-TILE_FLOATS = RES + 4 * TILE
+# then the de Casteljau levels of the values (bezier_tile): the three points of level 1
+# (twelve planes from MID) and the two of level 2 (eight more)
+MID = RES + 4 * TILE
+TILE_FLOATS = MID + 20 * TILE
 # The lanes are evaluated in groups of LANES (a constant trip count: SIMD with no scalar
 # remainder loop); the lanes of the last group past the samples compute on what the
 # tile holds there, zeros or an earlier tile's rows (no denormals: the tile starts as
@@ -319,14 +322,32 @@ def bezier_tile(out, tile, count, j):
     """Evaluate the `count` samples waiting in a tile (see :func:`start_bezier`: SIMD over
     its lanes, into its result planes), then store them in their rows j − count … j − 1 of
     `out`. The FLUSH of the Bézier method, inlined at _eval's one place (one copy of the
-    long de Casteljau chain)."""
-    for g in range((count + LANES - 1) // LANES):
+    long de Casteljau chain), with 512-bit vectors where the CPU has them. Level by
+    level, each a loop over the lanes of its own, through planes of the tile: a lane's
+    chain in one loop was longer than the CPU could overlap with the next lanes'
+    (10⁴ keys → 10⁶ samples 1.3x faster so, bit for bit the same)."""
+    prefer_wide_vectors()
+    groups = (count + LANES - 1) // LANES
+    for g in range(groups):  # level 1: the slerps on the segment's three fixed arcs
         for k in range(LANES):
             lane = g * LANES + k
             col = E.loads_at(tile, lane, TILE, NSEG)  # the lane's table row
-            r = bezier_seg(col[0:4], col[4:8], col[8:12], col[12:16], col[16:21], col[21:26], col[26:31],
-                           E.load1(tile, U + lane))
-            E.stores_at(tile, RES + lane, TILE, r)
+            u = E.load1(tile, U + lane)
+            E.stores_at(tile, MID + lane, TILE, arc_slerp(col[0:4], col[4:8], col[16:21], u)
+                        + arc_slerp(col[4:8], col[8:12], col[21:26], u) + arc_slerp(col[8:12], col[12:16], col[26:31], u))
+    for g in range(groups):  # level 2: two slerps of moving ends
+        for k in range(LANES):
+            lane = g * LANES + k
+            p = E.loads_at(tile, MID + lane, TILE, 12)
+            u = E.load1(tile, U + lane)
+            zero = like(u, 0.0)
+            E.stores_at(tile, MID + 12 * TILE + lane, TILE, slerp4(p[0:4], p[4:8], u, zero) + slerp4(p[4:8], p[8:12], u, zero))
+    for g in range(groups):  # level 3: the curve
+        for k in range(LANES):
+            lane = g * LANES + k
+            p = E.loads_at(tile, MID + 12 * TILE + lane, TILE, 8)
+            u = E.load1(tile, U + lane)
+            E.stores_at(tile, RES + lane, TILE, slerp4(p[0:4], p[4:8], u, like(u, 0.0)))
     for lane in range(count):
         E.stores(out, 4 * (j - count + lane), E.loads_at(tile, RES + lane, TILE, 4))
 
