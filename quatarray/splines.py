@@ -362,14 +362,15 @@ def start_bezier(seg):
 
 @rowloop(inline=True)
 def fill_tile(seg, n, tile, count, m):
-    """Table row n (flat) into lanes count … count + m − 1 of the tile, plane by plane: the
-    samples of a run share their segment's row, so each plane takes one value in
-    consecutive lanes (SIMD stores; one scalar store a float a sample, at a stride of
-    the tile's planes, took a fifth of the Bézier spline's time)."""
-    for c in range(NSEG):
-        x = E.load1(seg, n + c)
-        for i in range(m):
-            E.store1(tile, c * TILE + count + i, x)
+    """Table row n (flat) into lanes count … count + m − 1 of the tile: the samples of a
+    run share their segment's row, read once, and a loop over them, free of loads,
+    stores each plane's value into consecutive lanes (SIMD stores). The row read again
+    for each sample, in a loop whose trip count LLVM could not tell, left one scalar store
+    a float a sample: a fifth of the Bézier spline's time (10⁴ keys → 10⁶ samples 19.4-20.2
+    → 16.4-16.6 ms)."""
+    row = E.loads(seg, n, NSEG)
+    for i in range(m):
+        E.stores_at(tile, count + i, TILE, row)
 
 
 @rowloop(inline=True)
