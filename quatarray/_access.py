@@ -29,11 +29,10 @@ debug mode, see :mod:`quatarray._jit`) every access checks its index and raises
 ``IndexError`` past the array.
 """
 
+from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import lower_builtin, type_callable
-
-from llvmlite import ir
 
 from ._jit import CHECK_BOUNDS, STREAM_MIN_BYTES, element
 
@@ -323,8 +322,6 @@ for _fn, _width in _ROWS.items():
 for _fn, _width in _STORES.items():
     type_callable(_fn)(lambda context, w=_width: _typer_store(w))
     lower_builtin(_fn, types.Array, types.Integer, types.Any)(_lower_store(_width))
-
-
 
 
 # ---- non-temporal stores: a large output written past the caches

@@ -473,8 +473,8 @@ def new_zeros(context, builder, arrtype, n):
     except ImportError:
         populate_array = None
     alloc = getattr(getattr(context, "nrt", None), "meminfo_alloc_aligned", None)
-    if populate_array is None or _params(populate_array)[:6] != ["array", "data", "shape", "strides", "itemsize",
-                                                                "meminfo"]:
+    if populate_array is None or (_params(populate_array) or [])[:6] != ["array", "data", "shape", "strides",
+                                                                        "itemsize", "meminfo"]:
         degrade("scratch arrays", "numba.np.arrayobj.populate_array is missing or changed")
     elif alloc is None or _params(alloc) != ["builder", "size", "align"]:
         degrade("scratch arrays", "numba's NRT context has no meminfo_alloc_aligned(builder, size, align)")
