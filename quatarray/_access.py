@@ -328,9 +328,11 @@ for _fn, _width in _STORES.items():
 
 
 def streams(out):
-    """Whether a kernel may write `out` with :func:`stream4`: a C-contiguous float
-    array of at least :data:`quatarray._jit.STREAM_MIN_BYTES` whose buffer is 16-byte
-    aligned (the non-temporal vector stores need it; numpy's allocations are).
+    """Whether a kernel should write `out` with :func:`stream4`: a C-contiguous float
+    array of at least ``STREAM_MIN_BYTES`` (this module's copy of
+    :data:`quatarray._jit.STREAM_MIN_BYTES`, ``QUATARRAY_STREAM_MIN_BYTES``) whose
+    buffer is 16-byte aligned (the non-temporal vector stores need it; numpy's
+    allocations are).
 
     An ordinary store first reads the cache line it writes into (write-allocate):
     for a large output, a quarter of slerp's memory traffic went to reading lines
@@ -344,8 +346,9 @@ def streams(out):
 def stream4(out, i, q):
     """``store4(out, i, q)`` with the non-temporal hint: 16-byte vector stores that
     bypass the caches (``movntpd`` on x86), for a C-contiguous output that
-    :func:`streams`. Other layouts are stored as ``store4`` does. The stores are
-    weakly ordered: the loop ends with :func:`stream_end`."""
+    :func:`streams`. Other layouts, and rows not 16-byte aligned (checked as they are
+    stored), are stored as ``store4`` does. The stores are weakly ordered: the loop
+    ends with :func:`stream_end`."""
     store4(out, i, q)
 
 
@@ -375,12 +378,20 @@ def _lower_stream4(context, builder, sig, args):
     lanes = 16 // context.get_abi_sizeof(vals[0].type)  # two float64 or four float32
     vec = ir.VectorType(vals[0].type, lanes)
     hint = builder.module.add_metadata([ir.Constant(ir.IntType(32), 1)])
-    for c in range(0, 4, lanes):
-        v = ir.Constant(vec, ir.Undefined)
-        for k in range(lanes):
-            v = builder.insert_element(v, vals[c + k], ir.Constant(ir.IntType(32), k))
-        ptr = builder.bitcast(builder.gep(first, [context.get_constant(types.intp, c)], inbounds=True), vec.as_pointer())
-        builder.store(v, ptr, align=16).set_metadata("nontemporal", hint)
+    intp = context.get_value_type(types.intp)
+    # the vector stores fault on a row that is not 16-byte aligned (an array type does
+    # not say where its buffer starts): such a row is stored as store4 does
+    aligned = builder.icmp_unsigned("==", builder.and_(builder.ptrtoint(first, intp), intp(15)), intp(0))
+    with builder.if_else(aligned, likely=True) as (streamed, plain):
+        with streamed:
+            for c in range(0, 4, lanes):
+                v = ir.Constant(vec, ir.Undefined)
+                for k in range(lanes):
+                    v = builder.insert_element(v, vals[c + k], ir.Constant(ir.IntType(32), k))
+                ptr = builder.gep(first, [context.get_constant(types.intp, c)], inbounds=True)
+                builder.store(v, builder.bitcast(ptr, vec.as_pointer()), align=16).set_metadata("nontemporal", hint)
+        with plain:
+            _store_run(context, builder, aryty, args[0], (args[1], ity), 4, values)
     return context.get_dummy_value()
 
 

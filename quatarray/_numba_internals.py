@@ -488,6 +488,8 @@ def new_zeros(context, builder, arrtype, n):
             context.call_conv.return_user_exc(builder, ValueError, ("quatarray: a work array of negative or too "
                                                                     "many elements",))
         meminfo = alloc(builder, size, 64)
+        # (numba's NRT context raises MemoryError itself on a null result in current
+        # releases; the check stays for those that return it)
         with builder.if_then(cgutils.is_null(builder, meminfo), likely=False):
             context.call_conv.return_user_exc(builder, MemoryError, ("quatarray: a kernel's work array",))
         data = context.nrt.meminfo_data(builder, meminfo)

@@ -148,7 +148,7 @@ def _slerp_blocks(f, s):
 
     reps = SLERP_BLOCK // len(s.t) + 1
     p, q, t = np.tile(s.p, (reps, 1)), np.tile(s.q, (reps, 1)), np.tile(s.t, reps)
-    least = _access.STREAM_MIN_BYTES
+    least = _access.STREAM_MIN_BYTES  # (set for a moment: the table runs in the warm-up's worker processes)
     for stream in (least, 0):
         _access.STREAM_MIN_BYTES = stream
         try:

@@ -55,7 +55,7 @@ ROWS = 1024
 SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
 SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
 STREAM = False  # _slerp's rows written past the caches (E.stream4): True in _slerp_stream
-PAGE = 512  # elements of a 4 KiB page of float64 (of two for float32): _slerp's prefetch hints
+PAGE, LINE = 4096, 64  # bytes of a memory page and of a cache line (_slerp's prefetch hints)
 
 
 @rowloop(rows=2)
@@ -102,8 +102,8 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
             # from memory, where the rows come in while the arcs are computed
             nx = b0 + B
             if nx + B <= hi:
-                for j in range(4 * nx, 4 * (nx + B), PAGE):
-                    for c in range(0, 32, 8):
+                for j in range(4 * nx, 4 * (nx + B), PAGE // p.itemsize):
+                    for c in range(0, 4 * LINE // p.itemsize, LINE // p.itemsize):
                         E.prefetch(p, j + c)
                         E.prefetch(q, j + c)
                 E.prefetch(t, nx)
@@ -473,7 +473,9 @@ def slerp(p, q, t, shortest=True, out=None):
     >>> qa.slerp(p, q, [0.0, 0.5, 1.0]).shape
     (3, 4)
     """
-    return elementwise(_flat(_run_slerp, 1.0 if shortest else 0.0, out is not None), _pqt(p, q, t), [Q], out)
+    # a caller's C-contiguous `out` is the loop's output itself (others go through a new temporary)
+    given = out is not None and bool(getattr(getattr(out, "flags", None), "c_contiguous", False))
+    return elementwise(_flat(_run_slerp, 1.0 if shortest else 0.0, given), _pqt(p, q, t), [Q], out)
 
 
 def double(p, q, out=None):

@@ -59,7 +59,7 @@ from . import _cubic
 from . import _elements as E
 from ._jit import element, like, prange, prefer_wide_vectors, rowloop, scratch, specialise
 from ._rates import acc_coeffs, arc_rotvec, jac, jac_coeffs, jac_dot, qexp_half, slerp_acc, slerp_acc_fixed, slerp_rates
-from ._slerp import arc, arc_fast, arc_slerp, bezier_seg, nlerp4, slerp4, unflip_sign
+from ._slerp import arc, arc_fast, arc_slerp, nlerp4, slerp4, unflip_sign
 from ._trig import sincos
 from ._validate import as_times, key_array, key_times, spline_order
 from .interpolation import controls_bezier, controls_squad

@@ -133,7 +133,8 @@ def test_the_accessors_compile_nothing_of_their_own():
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_streamed_rows_are_the_stored_ones(dtype):
     """stream4 writes what store4 does: into flat and (n, 4) C-contiguous outputs (the
-    non-temporal vector stores) and, as store4, into the other layouts."""
+    non-temporal vector stores) and, as store4, into the other layouts and into rows
+    that are not 16-byte aligned (where the vector stores would fault)."""
     q = np.random.default_rng(4).normal(size=(41, 4)).astype(dtype)
     for out in (np.full((41, 4), np.nan, dtype), np.full(4 * 41, np.nan, dtype)):
         assert out.ctypes.data % 16 == 0
@@ -141,6 +142,13 @@ def test_streamed_rows_are_the_stored_ones(dtype):
         np.testing.assert_array_equal(out.reshape(41, 4), q)
     for layout in ("F", "strided"):
         out = _layouts(np.full((41, 4), np.nan, dtype))[layout]
+        _stream_rows(q, out)
+        np.testing.assert_array_equal(out, q)
+    # a C-contiguous buffer a few bytes off 16-byte alignment: stored as store4 does
+    raw = np.zeros(q.nbytes + 16, np.uint8)
+    for shift in (4, 8, 12):
+        off = (-raw.ctypes.data) % 16 + shift
+        out = raw[off:off + q.nbytes].view(dtype).reshape(q.shape)
         _stream_rows(q, out)
         np.testing.assert_array_equal(out, q)
 

@@ -199,6 +199,9 @@ def test_slerp_streamed_rows_are_the_cached_ones(rng, monkeypatch, dtype, shorte
     off = (-raw.ctypes.data) % 16 + want.itemsize
     out = raw[off:off + want.nbytes].view(dtype).reshape(want.shape)
     assert np.array_equal(qa.slerp(p, q, t, shortest, out=out), want)
+    # an `out` the loop cannot write itself goes through a new temporary: not streamed
+    for out in (np.empty((n, 8), dtype)[:, ::2], np.asfortranarray(np.empty_like(p))):
+        assert np.array_equal(qa.slerp(p, q, t, shortest, out=out), want)
     assert len(calls) == 6
 
 
