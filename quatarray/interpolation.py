@@ -55,7 +55,10 @@ ROWS = 1024
 SLERP_BLOCK = 256  # rows of _slerp's planes (8 planes: 16 KB in float64, in L1 cache)
 SLERP_CHUNKS = 4  # chunks of rows (each with its own planes) per numba thread, at most
 STREAM = False  # _slerp's rows written past the caches (E.stream4): True in _slerp_stream
-PAGE, LINE = 4096, 64  # bytes of a memory page and of a cache line (_slerp's prefetch hints)
+# _slerp's prefetch hints, in elements: a 4 KiB page and a 64-byte line of float64 (for
+# float32 they fall twice a page and twice a line: harmless, and a step read from the
+# array's item size, not a constant for LLVM, cost 2 % of a call)
+PAGE, LINE = 512, 8
 
 
 @rowloop(rows=2)
@@ -102,8 +105,8 @@ def _slerp(p, q, t, shortest, planes, rare_bits, out):
             # from memory, where the rows come in while the arcs are computed
             nx = b0 + B
             if nx + B <= hi:
-                for j in range(4 * nx, 4 * (nx + B), PAGE // p.itemsize):
-                    for c in range(0, 4 * LINE // p.itemsize, LINE // p.itemsize):
+                for j in range(4 * nx, 4 * (nx + B), PAGE):
+                    for c in range(0, 4 * LINE, LINE):
                         E.prefetch(p, j + c)
                         E.prefetch(q, j + c)
                 E.prefetch(t, nx)
