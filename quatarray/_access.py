@@ -34,7 +34,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import lower_builtin, type_callable
 
-from ._jit import CHECK_BOUNDS, STREAM_MIN_BYTES, element
+from ._jit import CHECK_BOUNDS, STREAM_MIN_BYTES, element, statement
 
 
 def load1(a, i):
@@ -395,22 +395,15 @@ def _lower_stream4(context, builder, sig, args):
     return context.get_dummy_value()
 
 
-@type_callable(stream_end)
-def _type_stream_end(context):
-    def typer():
-        return types.none
-
-    return typer
-
-
-@lower_builtin(stream_end)
-def _lower_stream_end(context, builder, sig, args):
+def _fence(context, builder):
     if builder.module.triple.startswith(("x86_64", "i686", "i386")):
         sfence = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []), "llvm.x86.sse.sfence")
         builder.call(sfence, [])
     else:
         builder.fence("seq_cst")
-    return context.get_dummy_value()
+
+
+statement(stream_end, _fence)
 
 
 # ---- prefetch hints

@@ -588,19 +588,22 @@ def prefer_no_gather():
     (``NUMBA_DISABLE_JIT=1``) it does nothing."""
 
 
-@type_callable(prefer_no_gather)
-def _type_prefer_no_gather(context):
-    # typed and lowered directly, as ``like``: the attribute goes on the caller's function
-    def typer():
-        return types.none
+def statement(fn, emit):
+    """Make `fn`, a function of no arguments that returns nothing, a builtin of the
+    kernels that call it: typed and lowered in place, as ``like``, its lowering
+    ``emit(context, builder)`` (an attribute on the caller's function, a fence).
+    Returns `fn`, which does nothing in plain Python."""
+    type_callable(fn)(lambda context: lambda: types.none)
 
-    return typer
+    @lower_builtin(fn)
+    def lower(context, builder, sig, args):
+        emit(context, builder)
+        return context.get_dummy_value()
+
+    return fn
 
 
-@lower_builtin(prefer_no_gather)
-def _lower_prefer_no_gather(context, builder, sig, args):
-    _ni.add_target_features(context, builder, NO_GATHER_FEATURES)
-    return context.get_dummy_value()
+statement(prefer_no_gather, lambda context, builder: _ni.add_target_features(context, builder, NO_GATHER_FEATURES))
 
 
 def scratch(n, like_array):
@@ -639,18 +642,7 @@ def prefer_wide_vectors():
     its own). In plain Python it does nothing."""
 
 
-@type_callable(prefer_wide_vectors)
-def _type_prefer_wide_vectors(context):
-    def typer():
-        return types.none
-
-    return typer
-
-
-@lower_builtin(prefer_wide_vectors)
-def _lower_prefer_wide_vectors(context, builder, sig, args):
-    _ni.add_wide_vectors(context, builder)
-    return context.get_dummy_value()
+statement(prefer_wide_vectors, _ni.add_wide_vectors)
 
 
 def exponent_scales(m):
@@ -811,24 +803,8 @@ class FarRows:
     ``_far_rows_norm``, their cache files beside `plain`'s);
     ``parallel=False`` keeps the first pass serial. Made by ``rowloop(far=...)``.
 
-    Examples
-    --------
-    ``_norm = rowloop(_norm_plain, far=_norm_scaled)`` with::
-
-        @element
-        def _norm_plain(i, args):
-            q, out = args
-            a = E.load4(q, i)
-            n2 = E.qdot(a, a)
-            out[i] = np.sqrt(n2)
-            return E.far_scale(n2)
-
-        @element
-        def _norm_scaled(i, args):
-            q, out = args
-            a = E.load4(q, i)
-            if E.far_scale(E.qdot(a, a)):
-                out[i] = E.qnorm(a)
+    Example: ``quatarray.algebra._norm = rowloop(_norm_plain, far=_norm_scaled)``, the
+    two formulas defined beside it.
     """
 
     # (The arrays go to plain and scaled as one tuple: a star call ``plain(i, *args)``
